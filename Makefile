@@ -1,0 +1,29 @@
+# Every target creates .venv if it is missing and installs into it; the install is skipped while
+# pyproject.toml is unchanged (the stamp file), so repeated runs start at once.
+VENV   := .venv
+PYTHON := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+OUT    ?= outputs
+
+.PHONY: install test lint figures bench clean
+
+install: $(STAMP)
+
+$(STAMP): pyproject.toml
+	test -x $(PYTHON) || python3 -m venv $(VENV)
+	$(PYTHON) -m pip install --quiet --disable-pip-version-check torch==2.13.0
+	$(PYTHON) -m pip install --quiet --disable-pip-version-check -e '.[dev,gym]'
+	touch $(STAMP)
+
+test: $(STAMP)
+	$(VENV)/bin/ruff check waterair tests
+	$(PYTHON) -m pytest -q
+
+figures: $(STAMP)
+	$(PYTHON) -m waterair.figures --out $(OUT)/figures
+
+bench: $(STAMP)
+	$(PYTHON) -m waterair.bench physics --out $(OUT)/bench/physics.json
+
+clean:
+	rm -rf $(VENV) *.egg-info .pytest_cache .ruff_cache

@@ -1,0 +1,121 @@
+"""Harmonic surface: statistics, derivatives and batching (SPEC §2)."""
+
+import math
+
+import pytest
+import torch
+
+from waterair.sea import SeaState
+from waterair.surface import WaveSurface
+
+
+def surface64(batch=8, seed=0, **sea):
+    return WaveSurface.sample(SeaState(**sea), batch, seed=seed, dtype=torch.float64)
+
+
+@pytest.mark.parametrize("amplitude,factor", [("standard", 1.0), ("paper", 0.5)])
+def test_ensemble_variance_matches_m0(amplitude, factor):
+    """Var η over 512 realisations at 16 well-separated points equals the discretised m0."""
+    sea = SeaState(amplitude=amplitude)
+    surface = WaveSurface.sample(sea, 512, seed=1, dtype=torch.float64)
+    x = torch.linspace(0.0, 3000.0, 16, dtype=torch.float64).expand(512, 16)
+    eta = surface.height(x, 0.5 * x, 7.0)
+    ensemble = eta.var(dim=0).mean().item()
+    # The paper's amplitude carries half of the standard one's variance, which is the band's m0.
+    band_m0 = sea.m0(*sea.omega_band)
+    assert surface.variance().mean().item() == pytest.approx(factor * band_m0, rel=0.03)
+    assert ensemble == pytest.approx(surface.variance().mean().item(), rel=0.03)
+    assert ensemble == pytest.approx(factor * band_m0, rel=0.03)
+
+
+def test_height_matches_direct_double_sum():
+    """η from an independent loop over (i, j) in float64 Python math."""
+    sea = SeaState(n_freq=5, n_dir=4, wind_direction_deg=30.0)
+    surface = WaveSurface.sample(sea, 2, seed=3, dtype=torch.float64)
+    x, y, t = 3.7, -1.2, 2.5
+    got = surface.height(torch.tensor([x, x], dtype=torch.float64), torch.tensor([y, y], dtype=torch.float64), t)
+    for b in range(2):
+        total = 0.0
+        for k in range(surface.num_harmonics):
+            omega = surface.omega[b, k].item()
+            kx, ky = surface.kx[b, k].item(), surface.ky[b, k].item()
+            assert math.hypot(kx, ky) == pytest.approx(omega**2 / 9.81, rel=1e-12)
+            total += surface.amplitude[b, k].item() * math.cos(
+                omega * t - kx * x - ky * y + surface.phase[b, k].item()
+            )
+        assert got[b].item() == pytest.approx(total, rel=1e-12, abs=1e-14)
+
+
+def test_derivatives_match_central_differences():
+    surface = surface64(batch=4, seed=2)
+    x = torch.tensor([0.3, -2.0, 5.5, 1.0], dtype=torch.float64)
+    y = torch.tensor([1.1, 0.0, -3.3, 2.0], dtype=torch.float64)
+    t = torch.tensor([0.0, 1.0, 2.5, 10.0], dtype=torch.float64)
+    s = surface.evaluate(x, y, t, order=2)
+    h = 1e-5
+    ex = surface.evaluate(x + h, y, t), surface.evaluate(x - h, y, t)
+    ey = surface.evaluate(x, y + h, t), surface.evaluate(x, y - h, t)
+
+    def fd(pair, field):
+        return (getattr(pair[0], field) - getattr(pair[1], field)) / (2 * h)
+
+    def rel(a, b):
+        return ((a - b).abs() / b.abs().clamp(min=1e-3)).max().item()
+
+    assert rel(s.dx, fd(ex, "height")) < 1e-6
+    assert rel(s.dy, fd(ey, "height")) < 1e-6
+    assert rel(s.dxx, fd(ex, "dx")) < 1e-6
+    assert rel(s.dxy, fd(ey, "dx")) < 1e-6
+    assert rel(s.dyy, fd(ey, "dy")) < 1e-6
+
+
+def test_point_sets_and_single_points_agree():
+    surface = surface64(batch=3)
+    x = torch.rand(3, 5, dtype=torch.float64) * 10
+    y = torch.rand(3, 5, dtype=torch.float64) * 10
+    many = surface.evaluate(x, y, 1.5)
+    for p in range(5):
+        one = surface.evaluate(x[:, p], y[:, p], 1.5)
+        torch.testing.assert_close(one.height, many.height[:, p])
+        torch.testing.assert_close(one.dxy, many.dxy[:, p])
+
+
+def test_seeds_are_reproducible_and_distinct():
+    a, b, c = surface64(seed=7), surface64(seed=7), surface64(seed=8)
+    torch.testing.assert_close(a.phase, b.phase)
+    torch.testing.assert_close(a.omega, b.omega)
+    assert not torch.allclose(a.phase, c.phase)
+
+
+def test_realisations_in_a_batch_are_independent():
+    surface = surface64(batch=2)
+    assert not torch.allclose(surface.phase[0], surface.phase[1])
+    assert not torch.allclose(surface.omega[0], surface.omega[1])
+
+
+def test_frequencies_are_jittered_inside_their_bins():
+    sea = SeaState(n_freq=8, n_dir=2)
+    surface = WaveSurface.sample(sea, 64, seed=4, dtype=torch.float64)
+    edges = sea.frequency_bins(torch.float64)
+    omega = surface.omega.reshape(64, 8, 2)[..., 0]
+    assert torch.all(omega >= edges[:-1]) and torch.all(omega < edges[1:])
+    assert omega.std(dim=0).min() > 0
+
+
+def test_flat_sea_is_flat():
+    s = surface64(flat=True).evaluate(torch.zeros(8, dtype=torch.float64), torch.zeros(8, dtype=torch.float64), 3.0)
+    assert torch.all(s.height == 0) and torch.all(s.dx == 0) and torch.all(s.dyy == 0)
+
+
+def test_row_assignment_resets_a_subset():
+    a, b = surface64(seed=1), surface64(seed=2)
+    mask = torch.tensor([True, False] * 4)
+    a[mask] = b[mask]
+    torch.testing.assert_close(a.phase[mask], b.phase[mask])
+    assert not torch.allclose(a.phase[~mask], b.phase[~mask])
+    torch.testing.assert_close(a.weights_sin[mask], b.weights_sin[mask])
+
+
+def test_batch_size_is_validated():
+    with pytest.raises(ValueError, match="batch_size = 0"):
+        WaveSurface.sample(SeaState(), 0)

@@ -1,0 +1,113 @@
+"""Optics of the water-air link: Snell refraction, Fresnel transmittance and the four gain terms.
+
+SPEC §4 (paper Sec. II, eqs. (2)-(5)). Angles in radians, distances in metres.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+N_WATER = 1.33
+"""Refractive index of sea water n_w (paper n1), SPEC §1."""
+N_AIR = 1.0
+"""Refractive index of air n_a (paper n2), SPEC §1."""
+
+WATER_ATTENUATION_PER_M = {
+    "pure_sea": 0.056,
+    "clear_ocean": 0.151,
+    "coastal": 0.398,
+    "harbor": 2.17,
+}
+"""Attenuation coefficient c (1/m) at 532 nm for the usual water types (SPEC §4)."""
+
+
+def critical_angle(n1: float = N_WATER, n2: float = N_AIR) -> float:
+    """Critical angle asin(n2 / n1) (rad) for light going from index n1 into n2 < n1."""
+    return math.asin(n2 / n1) if n2 < n1 else math.pi / 2
+
+
+def refract(direction: torch.Tensor, normal: torch.Tensor, n1: float, n2: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """Snell's law in vector form.
+
+    Args:
+        direction: unit propagation direction of the incident ray, ``[..., 3]``.
+        normal: unit surface normal on the incident side (``normal · direction < 0``), ``[..., 3]``.
+        n1, n2: refractive indices of the incident and transmitted media.
+
+    Returns:
+        The unit transmitted direction ``[..., 3]`` and a bool mask, False where the ray is
+        totally internally reflected (the direction there is the reflected one, never NaN).
+    """
+    ratio = n1 / n2
+    cos_i = -(normal * direction).sum(-1, keepdim=True)
+    sin2_t = ratio**2 * (1.0 - cos_i**2)
+    transmitted = sin2_t <= 1.0
+    cos_t = torch.sqrt(torch.clamp(1.0 - sin2_t, min=0.0))
+    refracted = ratio * direction + (ratio * cos_i - cos_t) * normal
+    reflected = direction + 2.0 * cos_i * normal
+    return torch.where(transmitted, refracted, reflected), transmitted.squeeze(-1)
+
+
+def fresnel_transmittance(theta1: torch.Tensor, n1: float = N_WATER, n2: float = N_AIR) -> torch.Tensor:
+    """Unpolarised Fresnel power transmittance G_ref = 1 − ½(r_s² + r_p²) (SPEC §4, paper eq. (4)).
+
+    Args:
+        theta1: incidence angle in the first medium (rad), any shape.
+        n1, n2: refractive indices of the incident and transmitted media.
+
+    0 beyond the critical angle (total internal reflection). Normal incidence 1.33 → 1 gives
+    1 − ((1.33 − 1)/(1.33 + 1))² ≈ 0.9799.
+    """
+    cos1 = torch.cos(theta1)
+    sin2 = (n1 / n2) * torch.sin(theta1)
+    total_reflection = sin2.abs() >= 1.0
+    cos2 = torch.sqrt(torch.clamp(1.0 - sin2**2, min=0.0))
+    r_s = (n1 * cos1 - n2 * cos2) / (n1 * cos1 + n2 * cos2)
+    r_p = (n2 * cos1 - n1 * cos2) / (n2 * cos1 + n1 * cos2)
+    transmittance = 1.0 - 0.5 * (r_s**2 + r_p**2)
+    return torch.where(total_reflection, torch.zeros_like(transmittance), transmittance)
+
+
+def departure_gain(alpha_d: torch.Tensor, divergence: float, wavelength: float) -> torch.Tensor:
+    """Gaussian-beam departure gain G_D(α_D) (SPEC §4, paper eq. (2)), dimensionless, G_D(0) = 1.
+
+    Args:
+        alpha_d: angle between the transmitter's pointing and the departing ray (rad).
+        divergence: beam divergence ω_D (rad).
+        wavelength: wavelength λ (m).
+    """
+    spread = 1.0 + (wavelength * torch.cos(alpha_d) / (math.pi * divergence**2)) ** 2
+    return torch.exp(-2.0 * torch.sin(alpha_d) ** 2 / (divergence**2 * spread))
+
+
+def path_gain(d_water: torch.Tensor, d_air: torch.Tensor, attenuation: float) -> torch.Tensor:
+    """Path gain G_p = exp(−c d_water) / (d_water + d_air)² (1/m²), SPEC §4, paper eq. (3).
+
+    Args:
+        d_water, d_air: ray lengths in water and air (m).
+        attenuation: attenuation coefficient c > 0 (1/m).
+
+    Correction: the paper writes exp(α d_water); attenuation must reduce the gain.
+    """
+    return torch.exp(-attenuation * d_water) / (d_water + d_air) ** 2
+
+
+def arrival_gain(alpha_a: torch.Tensor, half_fov: float, concentrator_index: float = 1.0) -> torch.Tensor:
+    """Receiver gain G_A = (n_c² / sin² ω_A) cos α_A inside the FOV, 0 outside (SPEC §4, eq. (5)).
+
+    Args:
+        alpha_a: angle between the receiver boresight and the reversed arriving ray (rad).
+        half_fov: receiver half field of view ω_A (rad).
+        concentrator_index: concentrator refractive index n_c (paper n2).
+    """
+    inside = alpha_a <= half_fov
+    gain = concentrator_index**2 / math.sin(half_fov) ** 2 * torch.cos(alpha_a)
+    return torch.where(inside, gain, torch.zeros_like(gain))
+
+
+def angle_between(u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """Angle (rad) between unit vectors ``[..., 3]``, accurate near 0 and π (atan2 of |u×v|, u·v)."""
+    cross = torch.linalg.vector_norm(torch.linalg.cross(u, v, dim=-1), dim=-1)
+    return torch.atan2(cross, (u * v).sum(-1))
