@@ -39,9 +39,7 @@ def check_range(
         left = "(" if low_open else "["
         right = ")" if high_open else "]"
         suffix = f" {unit}" if unit else ""
-        raise ValueError(
-            f"{name} = {value!r} is out of range; allowed {left}{_fmt(low)}, {_fmt(high)}{right}{suffix}"
-        )
+        raise ValueError(f"{name} = {value!r} is out of range; allowed {left}{_fmt(low)}, {_fmt(high)}{right}{suffix}")
     return number
 
 

@@ -139,8 +139,14 @@ def channel_gain(path: PathSolution, tx_dir: torch.Tensor, rx_dir: torch.Tensor,
     g_p, g_ref = _path_terms(path, optics)
     gain = g_d * g_p * g_ref * g_a
     return ChannelGain(
-        gain=gain, departure=g_d, path=g_p, refraction=g_ref, arrival=g_a,
-        alpha_d=alpha_d, alpha_a=alpha_a, batch_size=gain.shape[:1],
+        gain=gain,
+        departure=g_d,
+        path=g_p,
+        refraction=g_ref,
+        arrival=g_a,
+        alpha_d=alpha_d,
+        alpha_a=alpha_a,
+        batch_size=gain.shape[:1],
     )
 
 
@@ -153,12 +159,18 @@ def gain_upper_bound(path: PathSolution, optics: Transceiver) -> torch.Tensor:
 def calm_sea_gain(link: LinkGeometry, optics: Transceiver, dtype: torch.dtype = torch.float64) -> float:
     """G_0: the aligned gain on a flat sea for this geometry (1/m²), the intensity reference (SPEC §4)."""
     tx, rx = link.positions(dtype)
-    point = flat_sea_point(tx.unsqueeze(0), rx.unsqueeze(0), optics.n_water, optics.n_air)[0]
-    d_water, d_air = torch.linalg.vector_norm(point - tx), torch.linalg.vector_norm(rx - point)
-    theta1 = torch.acos((point - tx)[2] / d_water)
+    return float(calm_sea_gains(tx.unsqueeze(0), rx.unsqueeze(0), optics)[0])
+
+
+def calm_sea_gains(tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver) -> torch.Tensor:
+    """G_0 for a batch of geometries, ``tx``/``rx`` ``[B, 3]`` (m) → ``[B]`` (1/m²)."""
+    point = flat_sea_point(tx, rx, optics.n_water, optics.n_air)
+    d_water = torch.linalg.vector_norm(point - tx, dim=-1)
+    d_air = torch.linalg.vector_norm(rx - point, dim=-1)
+    theta1 = torch.acos(((point - tx)[:, 2] / d_water).clamp(-1.0, 1.0))
     g_p = path_gain(d_water, d_air, optics.attenuation_per_m)
     g_ref = fresnel_transmittance(theta1, optics.n_water, optics.n_air)
-    return float(g_p * g_ref * optics.concentrator_index**2 / math.sin(optics.half_fov) ** 2)
+    return g_p * g_ref * optics.concentrator_index**2 / math.sin(optics.half_fov) ** 2
 
 
 def pointing(tilt: torch.Tensor, up: bool) -> torch.Tensor:

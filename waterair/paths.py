@@ -278,8 +278,13 @@ def _solve_newton(surface, tx, rx, t, init, n_w, n_a, opts: NewtonOptions) -> Pa
             fraction[redo] *= 0.5
             sub_t = ws_t[redo] if isinstance(ws_t, torch.Tensor) and ws_t.dim() > 0 else ws_t
             part = _fermat(
-                ws_surface[redo], ws_xy[redo] + fraction[redo, None] * step[redo], sub_t,
-                ws_tx[redo], ws_rx[redo], n_w, n_a,
+                ws_surface[redo],
+                ws_xy[redo] + fraction[redo, None] * step[redo],
+                sub_t,
+                ws_tx[redo],
+                ws_rx[redo],
+                n_w,
+                n_a,
             )
             trial.assign(redo, part)
             accepted[redo] = part.length <= ws_ev.length[redo] + opts.armijo * fraction[redo] * slope[redo]

@@ -29,25 +29,28 @@ BAND_HIGH = 6.0
 AMPLITUDE_CONVENTIONS = ("standard", "paper")
 
 
-def jonswap_alpha(wind: float, fetch: float) -> float:
-    """Phillips constant α = 0.076 (U² / (g F))^0.22 (SPEC §2). Args: wind U10 (m/s), fetch F (m)."""
+def jonswap_alpha(wind, fetch):
+    """Phillips constant α = 0.076 (U² / (g F))^0.22 (SPEC §2).
+
+    Args: wind U10 (m/s), fetch F (m); floats or broadcastable tensors.
+    """
     return 0.076 * (wind**2 / (GRAVITY * fetch)) ** 0.22
 
 
-def jonswap_omega_p(wind: float, fetch: float) -> float:
+def jonswap_omega_p(wind, fetch):
     """Peak angular frequency ω_p = 22 (g² / (U F))^(1/3) in rad/s (SPEC §2).
 
-    Args: wind U10 (m/s), fetch F (m).
+    Args: wind U10 (m/s), fetch F (m); floats or broadcastable tensors.
     """
     return 22.0 * (GRAVITY**2 / (wind * fetch)) ** (1.0 / 3.0)
 
 
-def jonswap(omega: torch.Tensor, wind: float, fetch: float, gamma: float = 3.3) -> torch.Tensor:
+def jonswap(omega: torch.Tensor, wind, fetch: float, gamma: float = 3.3) -> torch.Tensor:
     """JONSWAP frequency spectrum S(ω) in m²·s/rad (SPEC §2, paper eq. (6)).
 
     Args:
         omega: angular frequency (rad/s), any shape; S is 0 where ω ≤ 0.
-        wind: wind speed U10 (m/s).
+        wind: wind speed U10 (m/s), a float or a tensor broadcastable against ``omega``.
         fetch: fetch F (m).
         gamma: peak enhancement factor γ (dimensionless).
     """
@@ -62,13 +65,13 @@ def jonswap(omega: torch.Tensor, wind: float, fetch: float, gamma: float = 3.3) 
     return torch.where(positive, spectrum, torch.zeros_like(spectrum))
 
 
-def spreading(omega: torch.Tensor, theta: torch.Tensor, omega_p: float) -> torch.Tensor:
+def spreading(omega: torch.Tensor, theta: torch.Tensor, omega_p) -> torch.Tensor:
     """Directional spreading G(ω, θ) = (1/π)[1 + p cos 2θ + q cos 4θ] in 1/rad (SPEC §2, eq. (7)).
 
     Args:
         omega: angular frequency (rad/s), broadcastable against ``theta``.
         theta: direction relative to the wind (rad); G is 0 for |θ| > π/2.
-        omega_p: peak angular frequency (rad/s).
+        omega_p: peak angular frequency (rad/s), a float or a broadcastable tensor.
 
     ``∫ G dθ = 1`` over [-π/2, π/2] for every ω.
     """
@@ -154,10 +157,18 @@ class SeaState:
         """H_s = 4 sqrt(m0) in metres."""
         return 4.0 * math.sqrt(self.m0())
 
-    def frequency_bins(self, dtype: torch.dtype = torch.float32, device=None) -> torch.Tensor:
-        """Edges of the ``n_freq`` equal-width frequency bins over :attr:`omega_band`, ``[n_freq+1]``."""
-        low, high = self.omega_band
-        return torch.linspace(low, high, self.n_freq + 1, dtype=dtype, device=device)
+    def frequency_bins(
+        self, dtype: torch.dtype = torch.float32, device=None, wind: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """Edges of the ``n_freq`` equal-width frequency bins over :attr:`omega_band` (rad/s).
+
+        ``[n_freq + 1]``; with a per-realisation ``wind`` (m/s, ``[B]``, overriding :attr:`wind`)
+        each row gets its own band, ``[B, n_freq + 1]``.
+        """
+        fraction = torch.linspace(BAND_LOW, BAND_HIGH, self.n_freq + 1, dtype=dtype, device=device)
+        if wind is None:
+            return fraction * self.omega_p
+        return fraction * jonswap_omega_p(wind.to(dtype), self.fetch).unsqueeze(-1)
 
     def directions(self, dtype: torch.dtype = torch.float32, device=None) -> tuple[torch.Tensor, float]:
         """Direction bin centres relative to the wind (rad, ``[n_dir]``) and the bin width Δθ."""
@@ -165,18 +176,24 @@ class SeaState:
         centres = -math.pi / 2 + (torch.arange(self.n_dir, dtype=dtype, device=device) + 0.5) * d_theta
         return centres, d_theta
 
-    def amplitudes(self, omega: torch.Tensor, d_omega: torch.Tensor) -> torch.Tensor:
+    def amplitudes(self, omega: torch.Tensor, d_omega: torch.Tensor, wind: torch.Tensor | None = None) -> torch.Tensor:
         """Harmonic amplitudes a_ij (m) for frequencies ``omega`` ``[..., n_freq]``, shape ``[..., n_freq, n_dir]``.
 
         ``a_ij = sqrt(c · S(ω_i) w_ij Δω_i)`` with c = 2 (standard) or 1 (paper), where
         ``w_ij = G(ω_i, θ_j) Δθ`` normalised so that ``Σ_j w_ij = 1`` exactly: for n_dir ≥ 3 the
         midpoint rule already gives 1; the normalisation keeps Var η = m0 for coarser grids too.
         Correction (SPEC §2): the paper's form has c = 1, which gives half the variance.
+        ``wind`` (m/s, ``[B]`` for ``omega`` ``[B, n_freq]``) overrides :attr:`wind` per row.
         """
+        if wind is None:
+            wind_speed, omega_p = self.wind, self.omega_p
+        else:
+            wind_speed = wind.to(omega.dtype).unsqueeze(-1)
+            omega_p = jonswap_omega_p(wind_speed, self.fetch).unsqueeze(-1)
         theta, d_theta = self.directions(omega.dtype, omega.device)
-        weights = spreading(omega.unsqueeze(-1), theta, self.omega_p) * d_theta
+        weights = spreading(omega.unsqueeze(-1), theta, omega_p) * d_theta
         weights = weights / weights.sum(-1, keepdim=True)
         factor = 2.0 if self.amplitude == "standard" else 1.0
-        energy = factor * self.spectrum(omega) * d_omega
+        energy = factor * jonswap(omega, wind_speed, self.fetch, self.gamma) * d_omega
         amplitude = torch.sqrt(energy.unsqueeze(-1) * weights)
         return torch.zeros_like(amplitude) if self.flat else amplitude

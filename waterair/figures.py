@@ -1,0 +1,121 @@
+"""Physics figures of the paper: the JONSWAP spectrum (Fig. 2) and a wave-surface snapshot (Fig. 3).
+
+python -m waterair.figures --out outputs/figures [--wind 12 --fetch 2e4 --seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import torch  # noqa: E402
+
+from waterair.sea import SeaState, spreading  # noqa: E402
+from waterair.surface import WaveSurface  # noqa: E402
+
+POINTS_PER_CHUNK = 2048
+"""Surface points evaluated at once when drawing a snapshot (bounds memory at P × K floats)."""
+
+
+def plot_spectrum(sea: SeaState, path: Path) -> Path:
+    """S(ω) against ω with the peak ω_p and the simulated band marked (paper Fig. 2a)."""
+    omega = torch.linspace(0.05, 4.0 * sea.omega_p, 800, dtype=torch.float64)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(omega, sea.spectrum(omega), color="tab:blue", label="JONSWAP S(ω)")
+    ax.axvline(sea.omega_p, color="tab:red", linestyle="--", label=f"ω_p = {sea.omega_p:.2f} rad/s")
+    low, high = sea.omega_band
+    ax.axvspan(low, min(high, float(omega[-1])), color="tab:gray", alpha=0.12, label="simulated band")
+    ax.set_xlabel("angular frequency ω (rad/s)")
+    ax.set_ylabel("S(ω) (m²·s/rad)")
+    ax.set_title(
+        f"JONSWAP spectrum, U10 = {sea.wind:g} m/s, fetch = {sea.fetch:g} m\n"
+        f"Hs = {sea.significant_wave_height:.2f} m, Tp = {2 * math.pi / sea.omega_p:.2f} s"
+    )
+    ax.legend()
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+def plot_directional_spectrum(sea: SeaState, path: Path) -> Path:
+    """S(ω, θ) = S(ω) G(ω, θ) as a 3-D surface (paper Fig. 2b)."""
+    omega = torch.linspace(0.3 * sea.omega_p, 3.0 * sea.omega_p, 120, dtype=torch.float64)
+    theta = torch.linspace(-math.pi / 2, math.pi / 2, 90, dtype=torch.float64)
+    w, th = torch.meshgrid(omega, theta, indexing="ij")
+    values = sea.spectrum(w) * spreading(w, th, sea.omega_p)
+    fig = plt.figure(figsize=(7, 5))
+    ax = fig.add_subplot(projection="3d")
+    ax.plot_surface(w.numpy(), torch.rad2deg(th).numpy(), values.numpy(), cmap="viridis", linewidth=0)
+    ax.set_xlabel("ω (rad/s)")
+    ax.set_ylabel("θ from wind (deg)")
+    ax.set_zlabel("S(ω, θ) (m²·s/rad²)")
+    ax.set_title(f"Directional JONSWAP spectrum, U10 = {sea.wind:g} m/s, fetch = {sea.fetch:g} m")
+    return _save(fig, path)
+
+
+def plot_surface_snapshot(
+    sea: SeaState, path: Path, *, extent: float = 60.0, resolution: int = 120, seed: int = 0
+) -> Path:
+    """One realisation η(x, y, 0) over an ``extent`` × ``extent`` m square (paper Fig. 3)."""
+    surface = WaveSurface.sample(sea, 1, seed=seed)
+    axis = torch.linspace(-extent / 2, extent / 2, resolution)
+    x, y = torch.meshgrid(axis, axis, indexing="xy")
+    flat_x, flat_y = x.reshape(1, -1), y.reshape(1, -1)
+    heights = [
+        surface.height(flat_x[:, i : i + POINTS_PER_CHUNK], flat_y[:, i : i + POINTS_PER_CHUNK], 0.0)
+        for i in range(0, flat_x.shape[1], POINTS_PER_CHUNK)
+    ]
+    eta = torch.cat(heights, dim=1).reshape(resolution, resolution)
+    fig = plt.figure(figsize=(7, 5))
+    ax = fig.add_subplot(projection="3d")
+    plot = ax.plot_surface(x.numpy(), y.numpy(), eta.numpy(), cmap="viridis", linewidth=0, antialiased=False)
+    ax.set_zlim(-4 * math.sqrt(sea.m0()), 4 * math.sqrt(sea.m0()))
+    ax.set_xlabel("x, downwind (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_zlabel("η (m)")
+    ax.set_title(f"Wave surface at t = 0, U10 = {sea.wind:g} m/s ({sea.n_freq}×{sea.n_dir} harmonics)")
+    fig.colorbar(plot, ax=ax, shrink=0.6, pad=0.12, label="η (m)")
+    return _save(fig, path)
+
+
+def physics_figures(out: Path, sea: SeaState | None = None, seed: int = 0) -> list[Path]:
+    """Write every physics figure into ``out`` and return their paths."""
+    sea = sea or SeaState()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    return [
+        plot_spectrum(sea, out / "jonswap_spectrum.png"),
+        plot_directional_spectrum(sea, out / "jonswap_directional.png"),
+        plot_surface_snapshot(sea, out / "wave_surface.png", seed=seed),
+    ]
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("outputs/figures"), help="output folder")
+    parser.add_argument("--wind", type=float, default=12.0, help="wind speed U10 (m/s)")
+    parser.add_argument("--fetch", type=float, default=2.0e4, help="fetch (m)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the surface snapshot")
+    args = parser.parse_args(argv)
+    try:
+        sea = SeaState(wind=args.wind, fetch=args.fetch)
+    except ValueError as error:
+        parser.exit(2, f"error: {error}\n")
+    for path in physics_figures(args.out, sea, args.seed):
+        print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
