@@ -6,7 +6,9 @@ meaningful. Timings are wall-clock medians over ``--repeats`` runs after one war
 * ``physics``: path-solve time per batch (Newton cold and warm start, centroid), surface
   evaluations per second, the "sin+cos floor" (one ``sin`` and one ``cos`` over ``[B, K]``) and the
   ratio of a Newton solve to (evaluations per solve × floor).
-* ``env``: see :mod:`waterair.bench_env` (registered when the environment exists).
+* ``env``: raw ``env.step`` loop and TorchRL ``rollout`` env-steps per second and peak memory per
+  batch size, with the floor ratio (step time / (surface evaluations per step × floor)); see
+  :mod:`waterair.bench_env`.
 """
 
 from __future__ import annotations
@@ -156,7 +158,12 @@ def main(argv: list[str] | None = None) -> int:
         help="batch sizes at which the (slow) centroid solver is also timed",
     )
     physics.add_argument("--wind", type=float, default=12.0, help="wind speed U10 (m/s)")
-    for p in (physics,):
+    env = sub.add_parser("env", help="environment steps per second and memory")
+    env.add_argument("--sizes", type=int, nargs="+", default=[1, 16, 256, 1024, 4096], help="batch sizes B")
+    env.add_argument(
+        "--centroid-sizes", type=int, nargs="*", default=[1, 16], help="batch sizes for the centroid solver"
+    )
+    for p in (physics, env):
         p.add_argument("--repeats", type=int, default=5, help="timed runs per measurement (median reported)")
         p.add_argument("--device", default="auto", help="cpu, cuda or auto")
         p.add_argument("--dtype", choices=["float32", "float64"], default="float32")
@@ -164,15 +171,21 @@ def main(argv: list[str] | None = None) -> int:
         p.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
     args = parser.parse_args(argv)
     device, dtype = resolve_device(args.device), getattr(torch, args.dtype)
-    if args.compile:
-        use_compiled_kernel(True)
-    try:
-        sea = SeaState(wind=args.wind)
-    except ValueError as error:
-        parser.exit(2, f"error: {error}\n")
-    record = bench_physics(args.sizes, args.centroid_sizes, args.repeats, device, dtype, sea)
-    record["compiled_kernel"] = args.compile
-    print(physics_table(record))
+    if args.suite == "env":
+        from waterair.bench_env import ENV_HEADER, bench_env
+
+        print(f"env benchmark: {device}, {'compiled' if args.compile else 'eager'} surface kernel\n\n{ENV_HEADER}")
+        record = bench_env(args.sizes, args.centroid_sizes, args.compile, args.device)
+    else:
+        if args.compile:
+            use_compiled_kernel(True)
+        try:
+            sea = SeaState(wind=args.wind)
+        except ValueError as error:
+            parser.exit(2, f"error: {error}\n")
+        record = bench_physics(args.sizes, args.centroid_sizes, args.repeats, device, dtype, sea)
+        record["compiled_kernel"] = args.compile
+        print(physics_table(record))
     out = args.out or Path("outputs/bench") / f"{args.suite}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(record, indent=2))

@@ -17,6 +17,7 @@ internal reflection) are flagged with ``valid = False``; no output is ever NaN.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -25,7 +26,7 @@ from tensordict import tensorclass
 
 from waterair._validation import check_choice, check_int, check_range
 from waterair.optics import N_AIR, N_WATER, angle_between, critical_angle, refract
-from waterair.surface import WaveSurface
+from waterair.surface import WaveSurface, compiled_kernel_enabled, harmonic_sums
 
 METHODS = ("newton", "centroid")
 
@@ -143,8 +144,8 @@ def solve_path(
     check_choice("method", method, METHODS)
     batch = surface.batch_size[0]
     dtype, device = surface.omega.dtype, surface.omega.device
-    tx = torch.as_tensor(tx, dtype=dtype, device=device).expand(batch, 3)
-    rx = torch.as_tensor(rx, dtype=dtype, device=device).expand(batch, 3)
+    tx = torch.as_tensor(tx, dtype=dtype, device=device).expand(batch, 3).contiguous()
+    rx = torch.as_tensor(rx, dtype=dtype, device=device).expand(batch, 3).contiguous()
     if init is None:
         init = flat_sea_point(tx, rx, n_water, n_air)[:, :2]
     if method == "newton":
@@ -196,27 +197,45 @@ class _Fermat:
 
 
 def _fermat(surface, xy, t, tx, rx, n_w, n_a) -> _Fermat:
+    """L, ∇L and ∇²L at surface points ``xy`` ``[m, 2]`` (see :func:`fermat_terms`)."""
+    time = torch.as_tensor(t, dtype=xy.dtype, device=xy.device).expand(xy.shape[0]).contiguous()
+    terms = _compiled_fermat() if compiled_kernel_enabled() else fermat_terms
+    return _Fermat(
+        *terms(surface.omega, surface.phase, surface.kx, surface.ky, surface.amplitude, xy, time, tx, rx, n_w, n_a)
+    )
+
+
+def fermat_terms(omega, phase, kx, ky, amplitude, xy, t, tx, rx, n_w: float, n_a: float):
     """Evaluate L(x, y), its gradient and Hessian (SPEC §3) in closed form.
 
     With u1 = (P − T)/r1, u2 = (R − P)/r2, w = n_w u1 − n_a u2 and the tangents P_x = (1, 0, η_x),
     P_y = (0, 1, η_y):  ∂L/∂a = w · P_a,  ∂²L/∂a∂b = Σ_i (n_i/r_i)[P_a·P_b − (u_i·P_a)(u_i·P_b)]
-    + w_z η_ab.
+    + w_z η_ab. A pure tensor function (surface components ``[m, K]``, ``xy`` ``[m, 2]``, ``t``
+    ``[m]``, ``tx``/``rx`` ``[m, 3]``), so that ``torch.compile`` can fuse the surface sums and
+    this algebra into one kernel. Returns (L, ∇L ``[m, 2]``, (L_xx, L_xy, L_yy) ``[m, 3]``,
+    P ``[m, 3]``, (η_x, η_y) ``[m, 2]``).
     """
-    s = surface.evaluate(xy[:, 0], xy[:, 1], t, order=2)
-    point = torch.stack((xy[:, 0], xy[:, 1], s.height), dim=-1)
+    sums = harmonic_sums(omega, phase, kx, ky, amplitude, xy[:, :1], xy[:, 1:], t, 2)
+    eta, dx, dy, dxx, dxy, dyy = (v.squeeze(-1) for v in sums)
+    point = torch.stack((xy[:, 0], xy[:, 1], eta), dim=-1)
     d1, d2 = point - tx, rx - point
     r1, r2 = torch.linalg.vector_norm(d1, dim=-1), torch.linalg.vector_norm(d2, dim=-1)
     u1, u2 = d1 / r1.unsqueeze(-1), d2 / r2.unsqueeze(-1)
     w = n_w * u1 - n_a * u2
-    grad = torch.stack((w[:, 0] + w[:, 2] * s.dx, w[:, 1] + w[:, 2] * s.dy), dim=-1)
-    u1a, u1b = u1[:, 0] + u1[:, 2] * s.dx, u1[:, 1] + u1[:, 2] * s.dy
-    u2a, u2b = u2[:, 0] + u2[:, 2] * s.dx, u2[:, 1] + u2[:, 2] * s.dy
+    grad = torch.stack((w[:, 0] + w[:, 2] * dx, w[:, 1] + w[:, 2] * dy), dim=-1)
+    u1a, u1b = u1[:, 0] + u1[:, 2] * dx, u1[:, 1] + u1[:, 2] * dy
+    u2a, u2b = u2[:, 0] + u2[:, 2] * dx, u2[:, 1] + u2[:, 2] * dy
     c1, c2 = n_w / r1, n_a / r2
-    hxx = c1 * (1 + s.dx**2 - u1a**2) + c2 * (1 + s.dx**2 - u2a**2) + w[:, 2] * s.dxx
-    hxy = c1 * (s.dx * s.dy - u1a * u1b) + c2 * (s.dx * s.dy - u2a * u2b) + w[:, 2] * s.dxy
-    hyy = c1 * (1 + s.dy**2 - u1b**2) + c2 * (1 + s.dy**2 - u2b**2) + w[:, 2] * s.dyy
+    hxx = c1 * (1 + dx**2 - u1a**2) + c2 * (1 + dx**2 - u2a**2) + w[:, 2] * dxx
+    hxy = c1 * (dx * dy - u1a * u1b) + c2 * (dx * dy - u2a * u2b) + w[:, 2] * dxy
+    hyy = c1 * (1 + dy**2 - u1b**2) + c2 * (1 + dy**2 - u2b**2) + w[:, 2] * dyy
     hess = torch.stack((hxx, hxy, hyy), dim=-1)
-    return _Fermat(n_w * r1 + n_a * r2, grad, hess, point, torch.stack((s.dx, s.dy), dim=-1))
+    return n_w * r1 + n_a * r2, grad, hess, point, torch.stack((dx, dy), dim=-1)
+
+
+@functools.cache
+def _compiled_fermat():
+    return torch.compile(fermat_terms, dynamic=True)
 
 
 def _newton_step(ev: _Fermat, tx, rx, n_w, n_a, max_step: float) -> torch.Tensor:

@@ -60,6 +60,11 @@ def harmonic_sums(omega, phase, kx, ky, amplitude, x, y, t, order: int):
 _kernel = harmonic_sums
 
 
+def compiled_kernel_enabled() -> bool:
+    """Whether :func:`use_compiled_kernel` is on (solvers compile their own fused steps then)."""
+    return _kernel is not harmonic_sums
+
+
 def use_compiled_kernel(enabled: bool = True) -> None:
     """Route every surface evaluation through ``torch.compile(harmonic_sums)`` (or back to eager).
 

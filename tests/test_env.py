@@ -1,0 +1,167 @@
+"""The TorchRL environment (SPEC §5): specs, actions, resets, seeding, finiteness."""
+
+import pytest
+import torch
+from torchrl.envs.utils import check_env_specs
+
+from waterair.env import WaterAirEnv, intensity_feature
+from waterair.env_config import EnvConfig
+
+SMALL_SEA = {"n_freq": 16, "n_dir": 8}
+
+
+def small_env(**kwargs) -> WaterAirEnv:
+    return WaterAirEnv(**{"seed": 0, **SMALL_SEA, **kwargs})
+
+
+@pytest.mark.parametrize("num_envs", [1, 16])
+@pytest.mark.parametrize("action_mode", ["absolute", "delta"])
+@pytest.mark.parametrize("extras", [(), ("spot", "history")])
+def test_check_env_specs(num_envs, action_mode, extras):
+    env = small_env(num_envs=num_envs, action_mode=action_mode, observation_extras=extras)
+    check_env_specs(env)
+    assert env.observation_spec["observation"].shape == (num_envs, 8 + (2 + 4) * bool(extras))
+    assert env.action_spec.shape == (num_envs, 4)
+    assert env.reward_spec.shape == (num_envs, 1)
+    assert env.full_done_spec["truncated"].shape == (num_envs, 1)
+
+
+def test_one_line_construction_uses_defaults():
+    env = WaterAirEnv(num_envs=4, wind=8.0, device="cpu", **SMALL_SEA)
+    assert env.batch_size == (4,)
+    assert env.config.wind == 8.0 and env.config.fetch == 2.0e4 and env.config.max_steps == 500
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("wind", [4.0, 12.0, 25.0])
+def test_long_random_rollouts_are_finite_and_below_the_upper_bound(wind):
+    env = WaterAirEnv(num_envs=256, wind=wind, seed=1, n_freq=32, n_dir=16)
+    rollout = env.rollout(500, break_when_any_done=False)
+    nxt = rollout["next"]
+    for key in ("observation", "reward", "gain", "gain_upper_bound", "intensity"):
+        assert torch.isfinite(nxt[key]).all(), key
+    assert (nxt["gain"] <= nxt["gain_upper_bound"] * (1 + 1e-5)).all()
+    assert nxt["path_valid"].float().mean() > 0.97
+    assert nxt["truncated"][:, -1].all() and not nxt["truncated"][:, :-1].any()
+
+
+def test_actions_are_clipped_and_nan_is_rejected():
+    env = small_env(num_envs=2)
+    td = env.reset()
+    td["action"] = torch.tensor([[5.0, 0.0, 0.0, -7.0], [1.0, 0.0, 0.0, -1.0]])
+    out = env.step(td)["next"]["observation"]
+    torch.testing.assert_close(out[0], out[1])
+    # |v| is limited to sin(max_tilt): a (1, 1) action does not tilt further than (1, 0) does
+    td = env.reset()
+    td["action"] = torch.tensor([[1.0, 1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]])
+    obs = env.step(td)["next"]["observation"]
+    assert torch.linalg.vector_norm(obs[:, :2], dim=-1).max() <= env.config.max_tilt + 1e-6
+    td["action"] = torch.tensor([[float("nan"), 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]])
+    with pytest.raises(ValueError, match="NaN"):
+        env.step(td)
+
+
+def test_delta_mode_respects_the_slew_limit():
+    env = small_env(num_envs=1, action_mode="delta", max_slew_deg_s=20.0, dt=0.05)
+    td = env.reset()
+    td["action"] = torch.tensor([[1.0, 0.0, 0.0, 0.0]])
+    tilts = []
+    for _ in range(3):
+        td = env.step(td)["next"].set("action", td["action"])
+        tilts.append(td["observation"][0, 0].item())
+    step = torch.sin(torch.deg2rad(torch.tensor(1.0))).item()  # 20 deg/s × 0.05 s
+    assert tilts == pytest.approx([step, 2 * step, 3 * step], rel=1e-5)
+
+
+def test_partial_reset_changes_exactly_the_masked_links():
+    env = small_env(num_envs=6)
+    td = env.reset()
+    td["action"] = torch.zeros(6, 4)
+    for _ in range(3):
+        td = env.step(td)["next"].set("action", torch.full((6, 4), 0.2))
+    before_phase = env.surface.phase.clone()
+    before_obs = td["observation"].clone()
+    mask = torch.tensor([True, False, False, True, False, False]).unsqueeze(-1)
+    # As in step_and_maybe_reset: rows not being reset are carried over from the input.
+    out = env.reset(td.clone().set("_reset", mask))
+    rows = mask.squeeze(-1)
+    assert not torch.allclose(env.surface.phase[rows], before_phase[rows])
+    torch.testing.assert_close(env.surface.phase[~rows], before_phase[~rows])
+    torch.testing.assert_close(out["observation"][~rows], before_obs[~rows])
+    assert (out["observation"][rows, -1] == 0).all()  # relative time restarted
+    assert (env.steps[rows] == 0).all() and (env.steps[~rows] == 3).all()
+    assert not out["done"].any()
+
+
+def test_same_seed_same_rollout_different_seed_differs():
+    def run(seed):
+        env = small_env(num_envs=3)
+        env.set_seed(seed)
+        torch.manual_seed(123)  # random actions come from the global generator
+        return env.rollout(20)
+
+    a, b, c = run(5), run(5), run(6)
+    torch.testing.assert_close(a["next", "gain"], b["next", "gain"])
+    torch.testing.assert_close(a["next", "observation"], b["next", "observation"])
+    assert not torch.allclose(a["next", "gain"], c["next", "gain"])
+
+
+def test_step_writes_measurements_outside_the_observation():
+    env = small_env(num_envs=4)
+    td = env.reset()
+    td["action"] = torch.zeros(4, 4)
+    nxt = env.step(td)["next"]
+    for key in ("gain", "gain_upper_bound", "intensity", "path_valid", "alpha_d", "alpha_a", "departure", "arrival"):
+        assert key in nxt.keys()
+    torch.testing.assert_close(nxt["intensity"], nxt["gain"] / env.reference_gain)
+    torch.testing.assert_close(nxt["observation"][:, 6], intensity_feature(nxt["intensity"]))
+
+
+def test_domain_randomisation_draws_per_link_values():
+    env = small_env(num_envs=64, wind_range=(4.0, 20.0), offset_range=(0.0, 0.5))
+    offsets = torch.linalg.vector_norm(env.rx_position[:, :2], dim=-1) / 20.0
+    assert offsets.min() >= 0 and offsets.max() <= 0.5 and offsets.std() > 0.05
+    variance = env.surface.variance()
+    assert variance.max() > 5 * variance.min()  # 4 vs 20 m/s seas differ a lot
+
+
+def test_spot_extra_is_zero_without_light_and_centred_when_aligned():
+    env = small_env(num_envs=2, observation_extras=("spot",))
+    td = env.reset()
+    # link 0 follows the path exactly (receiver along −u_a); link 1 looks far away
+    rx_dir = -td["arrival"]
+    tx_dir = td["departure"]
+    action = env.action_for_pointing(tx_dir, rx_dir)
+    action[1] = torch.tensor([0.0, 0.0, 1.0, 1.0])
+    td["action"] = action
+    spot = env.step(td)["next"]["observation"][:, 8:10]
+    assert spot[0].abs().max() < 0.5
+    assert (spot[1] == 0).all()
+
+
+@pytest.mark.parametrize(
+    "kwargs,key",
+    [
+        ({"num_envs": 0}, "env.num_envs"),
+        ({"dt": 0.0}, "env.dt"),
+        ({"dt": -0.05}, "env.dt"),
+        ({"action_mode": "velocity"}, "env.action_mode"),
+        ({"wind": -1.0}, "env.wind"),
+        ({"max_tilt_deg": 95.0}, "env.max_tilt_deg"),
+        ({"observation_extras": ("camera",)}, "env.observation_extras"),
+        ({"wind_range": (5.0, 2.0)}, "env.wind_range[1]"),
+        ({"solver": "bisection"}, "env.solver"),
+        ({"half_fov": 2.0}, "env.half_fov"),
+    ],
+)
+def test_config_errors_name_key_value_and_range(kwargs, key):
+    with pytest.raises(ValueError) as info:
+        EnvConfig(**kwargs)
+    message = str(info.value)
+    assert message.startswith(f"{key} = "), message
+    assert "allowed" in message or "choose one of" in message
+
+
+def test_unknown_config_key_is_an_error():
+    with pytest.raises(ValueError, match="env.wnd is not a known key"):
+        EnvConfig().replace(wnd=3.0)

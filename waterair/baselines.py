@@ -1,0 +1,96 @@
+"""Model-based alignment baselines as TensorDict policies (SPEC §6).
+
+Each policy reads what the environment writes into the tensordict (``tx_position``,
+``rx_position`` and, for tracking, the last path's ``departure``/``arrival``) and writes
+``action``, so it runs through exactly the same ``env.rollout`` as a learned agent. The upper
+bound is not a policy: the environment reports ``gain_upper_bound`` every step.
+"""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDictBase
+from tensordict.nn import TensorDictModuleBase
+
+from waterair.env import WaterAirEnv
+from waterair.paths import flat_sea_point
+
+
+class PointingPolicy(TensorDictModuleBase):
+    """Base class: subclasses say where each end should point; this turns it into an action."""
+
+    in_keys = ["tx_position", "rx_position"]
+    out_keys = ["action"]
+    name = "pointing"
+
+    def __init__(self, env: WaterAirEnv):
+        super().__init__()
+        self.env = env
+
+    def directions(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, torch.Tensor]:
+        """Unit transmitter (up) and receiver (down) pointing, each ``[B, 3]``."""
+        raise NotImplementedError
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        tx_dir, rx_dir = self.directions(tensordict)
+        tensordict.set("action", self.env.action_for_pointing(tx_dir, rx_dir))
+        return tensordict
+
+
+class NoAlignment(PointingPolicy):
+    """Transmitter straight up, receiver straight down."""
+
+    name = "no_alignment"
+
+    def directions(self, tensordict):
+        up = torch.zeros_like(tensordict.get("tx_position"))
+        up[:, 2] = 1.0
+        return up, -up
+
+
+class StraightFacing(PointingPolicy):
+    """Each end points at the other along the straight line, ignoring refraction (paper)."""
+
+    name = "straight_facing"
+
+    def directions(self, tensordict):
+        line = _unit(tensordict.get("rx_position") - tensordict.get("tx_position"))
+        return line, -line
+
+
+class FlatSeaSnell(PointingPolicy):
+    """Both ends along the refracted path of a calm sea: the mean refraction, no surface knowledge."""
+
+    name = "flat_snell"
+
+    def directions(self, tensordict):
+        tx, rx = tensordict.get("tx_position"), tensordict.get("rx_position")
+        point = flat_sea_point(tx, rx, self.env.optics.n_water, self.env.optics.n_air)
+        return _unit(point - tx), _unit(point - rx)
+
+
+class PreviousPathTracking(PointingPolicy):
+    """Both ends along the path of the previous step (perfect sensing, one step of delay).
+
+    A strong model-based competitor: it knows the exact path, 50 ms late. Falls back to the
+    flat-sea path where the previous path was invalid.
+    """
+
+    in_keys = ["tx_position", "rx_position", "departure", "arrival", "path_valid"]
+    name = "tracking"
+
+    def directions(self, tensordict):
+        flat_tx, flat_rx = FlatSeaSnell.directions(self, tensordict)
+        valid = tensordict.get("path_valid").unsqueeze(-1)
+        return (
+            torch.where(valid, tensordict.get("departure"), flat_tx),
+            torch.where(valid, -tensordict.get("arrival"), flat_rx),
+        )
+
+
+BASELINES = {cls.name: cls for cls in (NoAlignment, StraightFacing, FlatSeaSnell, PreviousPathTracking)}
+"""Baseline policy classes by name."""
+
+
+def _unit(v: torch.Tensor) -> torch.Tensor:
+    return v / torch.linalg.vector_norm(v, dim=-1, keepdim=True)

@@ -1,0 +1,107 @@
+"""Environment benchmark: ``python -m waterair.bench env`` (see :mod:`waterair.bench`).
+
+Each (B, solver) point runs in a fresh worker process so that its peak resident memory is its
+own; the worker reports JSON on stdout. The sin+cos floor is measured inside the same worker.
+"""
+
+from __future__ import annotations
+
+import json
+import resource
+import subprocess
+import sys
+import time
+
+import torch
+
+SECONDS_PER_MEASUREMENT = 2.0
+"""Each timing runs about this long (at least 5 steps)."""
+
+
+def worker(batch: int, solver: str, compile_kernel: bool, device: str) -> dict:
+    """Time raw ``env.step`` and ``env.rollout`` at one batch size (runs inside the worker)."""
+    from waterair.bench import sincos_floor
+    from waterair.env import WaterAirEnv
+
+    baseline_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    env = WaterAirEnv(
+        num_envs=batch, seed=0, solver=solver, compile_kernel=compile_kernel, device=device, max_steps=10**6
+    )
+    td = env.reset()
+    generator = torch.Generator().manual_seed(0)
+    td["action"] = (2 * torch.rand(batch, 4, generator=generator) - 1).to(env.device)
+    start = time.perf_counter()
+    for _ in range(3):  # warm-up: compilation, allocator
+        td = env.step(td)["next"].set("action", td["action"])
+    warm_step = (time.perf_counter() - start) / 3
+    steps = max(5, int(SECONDS_PER_MEASUREMENT / warm_step))
+    iterations = []
+
+    def step_loop():
+        nonlocal td
+        for _ in range(steps):
+            td = env.step(td)["next"].set("action", td["action"])
+            iterations.append(env.last_path_iterations.float().mean().item())
+
+    start = time.perf_counter()
+    step_loop()
+    if env.device.type == "cuda":
+        torch.cuda.synchronize()
+    step_s = (time.perf_counter() - start) / steps
+    start = time.perf_counter()
+    env.rollout(steps, break_when_any_done=False)
+    if env.device.type == "cuda":
+        torch.cuda.synchronize()
+    rollout_s = (time.perf_counter() - start) / steps
+    floor = sincos_floor(batch, env.surface.num_harmonics, 5, env.device, env.float_dtype)
+    evaluations = 1.0 + sum(iterations) / len(iterations)
+    peak_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - baseline_kb) / 1024
+    if env.device.type == "cuda":
+        peak_mb = torch.cuda.max_memory_allocated() / 2**20
+    return {
+        "batch": batch,
+        "solver": solver,
+        "steps_timed": steps,
+        "step_s": step_s,
+        "env_steps_per_s": batch / step_s,
+        "rollout_env_steps_per_s": batch / rollout_s,
+        "sincos_floor_s": floor,
+        "evaluations_per_step": evaluations,
+        "floor_ratio": step_s / (evaluations * floor),
+        "peak_memory_mb": peak_mb,
+    }
+
+
+def bench_env(sizes, centroid_sizes, compile_kernel: bool, device: str) -> dict:
+    """Run every (B, solver) point in its own process and collect the records."""
+    from waterair.bench import machine, resolve_device
+
+    rows = []
+    for solver, solver_sizes in (("newton", sizes), ("centroid", centroid_sizes)):
+        for batch in solver_sizes:
+            args = [sys.executable, "-m", "waterair.bench_env", str(batch), solver, str(int(compile_kernel)), device]
+            done = subprocess.run(args, capture_output=True, text=True, check=False)
+            if done.returncode != 0:
+                raise RuntimeError(f"env benchmark worker B={batch} {solver} failed:\n{done.stderr[-2000:]}")
+            rows.append(json.loads(done.stdout.strip().splitlines()[-1]))
+            print(env_row(rows[-1]), flush=True)
+    resolved = resolve_device(device)
+    return {"benchmark": "env", **machine(resolved, torch.float32), "compiled_kernel": compile_kernel, "rows": rows}
+
+
+ENV_HEADER = (
+    "| B | solver | env-steps/s (step loop) | env-steps/s (rollout) | evals/step | floor ratio | peak memory (MB) |\n"
+    "|---|---|---|---|---|---|---|"
+)
+
+
+def env_row(r: dict) -> str:
+    return (
+        f"| {r['batch']} | {r['solver']} | {r['env_steps_per_s']:,.0f} | {r['rollout_env_steps_per_s']:,.0f} "
+        f"| {r['evaluations_per_step']:.2f} | {r['floor_ratio']:.2f} | {r['peak_memory_mb']:.0f} |"
+    )
+
+
+if __name__ == "__main__":
+    batch_arg, solver_arg, compile_arg, device_arg = sys.argv[1:5]
+    print(json.dumps(worker(int(batch_arg), solver_arg, bool(int(compile_arg)), device_arg)))

@@ -1,0 +1,356 @@
+"""TensorDict-native TorchRL environment of B independent water-air links (SPEC §5).
+
+``WaterAirEnv(num_envs=1024, wind=12.0, device="cpu")`` or ``WaterAirEnv(EnvConfig(...))``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.data import Bounded, Categorical, Composite, Unbounded
+from torchrl.envs import EnvBase
+
+from waterair.channel import calm_sea_gains, channel_gain, gain_upper_bound, pointing
+from waterair.env_config import EnvConfig
+from waterair.paths import flat_sea_point, solve_path
+from waterair.rewards import Reward
+from waterair.surface import WaveSurface, use_compiled_kernel
+
+INTENSITY_EPS = 1e-6
+"""Offset inside the observed intensity feature log10(I + ε), so that I = 0 maps to a finite value."""
+
+MEASUREMENT_KEYS = (
+    "gain",
+    "gain_upper_bound",
+    "intensity",
+    "path_valid",
+    "alpha_d",
+    "alpha_a",
+    "departure",
+    "arrival",
+)
+
+
+def intensity_feature(intensity: torch.Tensor) -> torch.Tensor:
+    """Observed intensity feature (log10(I + 1e-6) + 6) / 6: 0 for no light, ≈ 1 at calm-sea level.
+
+    Monotone in I; logarithmic because I spans many decades between aligned and lost.
+    """
+    return (torch.log10(intensity + INTENSITY_EPS) + 6.0) / 6.0
+
+
+class WaterAirEnv(EnvBase):
+    """B independent water-to-air optical links, each with its own sea (SPEC §5).
+
+    **Action** ``[B, 4]`` in [-1, 1]: (tx_vx, tx_vy, rx_vx, rx_vy). In ``absolute`` mode the tilt
+    vectors are action · sin(max_tilt); in ``delta`` mode action · sin(max_slew · dt) is added to
+    the current tilt (a slew-rate-limited gimbal). Tilts are then limited to |v| ≤ sin(max_tilt);
+    the transmitter points (v, +sqrt(1 − |v|²)) and the receiver (v, −sqrt(1 − |v|²)). Values
+    outside [-1, 1] are clipped; NaN actions raise ``ValueError``.
+
+    **Observation** ``[B, 8]``: transmitter pointing (3), receiver pointing (3), the intensity
+    feature (log10(I + 1e-6) + 6) / 6 (1), relative time t / T_episode (1). Opt-in extras, in this
+    order: ``spot`` (2: where the arrival spot sits on a quadrant detector, the arriving ray's
+    direction in the receiver frame divided by tan ω_A; 0 when no light arrives) and ``history``
+    (``history_length`` previous intensity features, newest first).
+
+    **Reward** ``[B, 1]``: :class:`waterair.rewards.Reward` of the intensity I = G / G_0, where G_0
+    is the aligned calm-sea gain of the same geometry.
+
+    **Start**: new sea phases and jittered frequencies per link (and wind / offset drawn from their
+    ranges when domain randomisation is configured), transmitter straight up, receiver straight
+    down, t = 0. A ``_reset`` mask resets only the masked links.
+
+    **Termination**: none; ``truncated`` (and ``done``) after ``max_steps`` steps (500 → 25 s).
+
+    Besides the observation each step writes ``gain`` G (1/m²), ``gain_upper_bound`` G_UB,
+    ``intensity`` I, ``path_valid``, ``alpha_d``/``alpha_a`` (rad), ``departure``/``arrival`` unit
+    path directions and ``tx_position``/``rx_position`` (m), for evaluation and the baselines.
+    The simulator state lives on the device chosen at construction.
+    """
+
+    batch_locked = True
+
+    def __init__(self, config: EnvConfig | None = None, *, reward: Reward | None = None, **overrides):
+        config = (config or EnvConfig()).replace(**overrides) if overrides else (config or EnvConfig())
+        device = (
+            torch.device("cuda" if torch.cuda.is_available() else "cpu")
+            if config.device == "auto"
+            else torch.device(config.device)
+        )
+        super().__init__(device=device, batch_size=torch.Size([config.num_envs]))
+        if config.compile_kernel:
+            use_compiled_kernel(True)
+        self.config = config
+        self.reward_fn = reward or Reward()
+        self.sea, self.link, self.optics = config.sea(), config.link(), config.transceiver()
+        self.float_dtype = getattr(torch, config.dtype)
+        self.observation_size = (
+            8
+            + 2 * ("spot" in config.observation_extras)
+            + config.history_length * ("history" in config.observation_extras)
+        )
+        self._make_specs()
+        self._generator = torch.Generator()
+        self._set_seed(config.seed)
+        self._allocate_state()
+        self._reset_rows(torch.arange(config.num_envs, device=device))
+
+    # --- TorchRL interface ------------------------------------------------------------------
+
+    def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
+        mask = None if tensordict is None else tensordict.get("_reset", None)
+        if mask is None:
+            rows = torch.arange(self.batch_size[0], device=self.device)
+        else:
+            rows = mask.reshape(self.batch_size[0], -1).any(-1).nonzero().squeeze(-1)
+        if rows.numel():
+            self._reset_rows(rows)
+        out = self._output()
+        done = torch.zeros(*self.batch_size, 1, dtype=torch.bool, device=self.device)
+        out.update({"done": done, "terminated": done.clone(), "truncated": done.clone()})
+        return out
+
+    def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        action = tensordict.get("action")
+        if torch.isnan(action).any():
+            bad = torch.isnan(action).any(-1).nonzero().squeeze(-1).tolist()
+            raise ValueError(
+                f"action contains NaN (links {bad[:8]}{'…' if len(bad) > 8 else ''}); actions must be finite"
+            )
+        self._apply_action(action.to(self.float_dtype).clamp(-1.0, 1.0))
+        self.time = self.time + self.config.dt
+        self.steps = self.steps + 1
+        path = solve_path(
+            self.surface,
+            self.tx_position,
+            self.rx_position,
+            self.time,
+            self.config.solver,
+            init=self.point[:, :2],
+            n_water=self.optics.n_water,
+            n_air=self.optics.n_air,
+        )
+        self._record(path, torch.arange(self.batch_size[0], device=self.device))
+        self.last_path_iterations = path.iterations
+        out = self._output()
+        truncated = (self.steps >= self.config.max_steps).unsqueeze(-1)
+        out.update(
+            {
+                "reward": self.reward_fn(self.measurement["intensity"]).unsqueeze(-1),
+                "done": truncated,
+                "terminated": torch.zeros_like(truncated),
+                "truncated": truncated.clone(),
+            }
+        )
+        return out
+
+    def _set_seed(self, seed: int | None) -> None:
+        # Random numbers are drawn on the CPU generator, so a seed gives the same seas on any device.
+        if seed is None:
+            self._generator.seed()
+        else:
+            self._generator.manual_seed(int(seed))
+
+    # --- helpers for policies ---------------------------------------------------------------
+
+    def action_for_pointing(self, tx_dir: torch.Tensor, rx_dir: torch.Tensor) -> torch.Tensor:
+        """The action ``[B, 4]`` that best points the ends along ``tx_dir`` (up) and ``rx_dir`` (down).
+
+        Absolute mode: the target tilts (clipped to the action box); delta mode: the step toward
+        them allowed by the slew limit.
+        """
+        target = torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1).to(self.float_dtype)
+        if self.config.action_mode == "absolute":
+            return (target / self.config.max_tilt).clamp(-1.0, 1.0)
+        current = torch.cat((self.tx_tilt, self.rx_tilt), dim=-1)
+        return ((target - current) / self._slew_step).clamp(-1.0, 1.0)
+
+    # --- internals --------------------------------------------------------------------------
+
+    @property
+    def _slew_step(self) -> float:
+        return math.sin(math.radians(self.config.max_slew_deg_s * self.config.dt))
+
+    def _make_specs(self) -> None:
+        dtype = self.float_dtype
+
+        def vector(size: int) -> Unbounded:
+            return Unbounded(shape=(size,), dtype=dtype)
+
+        scalar = Unbounded(shape=(), dtype=dtype)
+        self.observation_spec_unbatched = Composite(
+            observation=vector(self.observation_size),
+            gain=scalar.clone(),
+            gain_upper_bound=scalar.clone(),
+            intensity=scalar.clone(),
+            path_valid=Categorical(2, shape=(), dtype=torch.bool),
+            alpha_d=scalar.clone(),
+            alpha_a=scalar.clone(),
+            departure=vector(3),
+            arrival=vector(3),
+            tx_position=vector(3),
+            rx_position=vector(3),
+        )
+        self.action_spec_unbatched = Bounded(low=-1.0, high=1.0, shape=(4,), dtype=dtype)
+        self.reward_spec_unbatched = Unbounded(shape=(1,), dtype=dtype)
+        flag = Categorical(2, shape=(1,), dtype=torch.bool)
+        self.done_spec_unbatched = Composite(done=flag.clone(), terminated=flag.clone(), truncated=flag.clone())
+
+    def _allocate_state(self) -> None:
+        batch, device, dtype = self.batch_size[0], self.device, self.float_dtype
+
+        def zeros(*shape, kind=dtype):
+            return torch.zeros(batch, *shape, dtype=kind, device=device)
+
+        self.surface = WaveSurface.sample(self.sea, batch, generator=self._generator, device=device, dtype=dtype)
+        self.time, self.steps = zeros(), zeros(kind=torch.int64)
+        self.tx_tilt, self.rx_tilt = zeros(2), zeros(2)
+        self.tx_position, self.rx_position = zeros(3), zeros(3)
+        self.point, self.flat_point = zeros(3), zeros(3)
+        self.reference_gain = zeros()
+        self.history = zeros(self.config.history_length)
+        self.measurement = TensorDict(
+            {
+                "gain": zeros(),
+                "gain_upper_bound": zeros(),
+                "intensity": zeros(),
+                "path_valid": zeros(kind=torch.bool),
+                "alpha_d": zeros(),
+                "alpha_a": zeros(),
+                "departure": zeros(3),
+                "arrival": zeros(3),
+                "spot": zeros(2),
+            },
+            batch_size=[batch],
+            device=device,
+        )
+
+    def _reset_rows(self, rows: torch.Tensor) -> None:
+        """New seas, geometry, pointing and a cold path solve for ``rows`` (``[n]`` indices)."""
+        config, count, dtype = self.config, rows.numel(), self.float_dtype
+        wind = self._uniform(config.wind_range, count) if config.wind_range else None
+        self.surface[rows] = WaveSurface.sample(
+            self.sea, count, generator=self._generator, device=self.device, dtype=dtype, wind=wind
+        )
+        offset = (
+            self._uniform(config.offset_range, count)
+            if config.offset_range
+            else torch.full((count,), config.offset_ratio, dtype=torch.float64)
+        )
+        tx, rx = self._positions(offset)
+        self.tx_position[rows], self.rx_position[rows] = tx, rx
+        self.reference_gain[rows] = calm_sea_gains(tx.double(), rx.double(), self.optics).to(dtype)
+        flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)
+        self.flat_point[rows] = flat
+        self.time[rows] = 0.0
+        self.steps[rows] = 0
+        self.tx_tilt[rows] = 0.0
+        self.rx_tilt[rows] = 0.0
+        path = solve_path(
+            self.surface[rows],
+            tx,
+            rx,
+            self.time[rows],
+            config.solver,
+            init=flat[:, :2],
+            n_water=self.optics.n_water,
+            n_air=self.optics.n_air,
+        )
+        self._record(path, rows)
+        self.history[rows] = 0.0
+
+    def _uniform(self, bounds: tuple[float, float], count: int) -> torch.Tensor:
+        low, high = bounds
+        return low + (high - low) * torch.rand(count, generator=self._generator, dtype=torch.float64)
+
+    def _positions(self, offset_ratio: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """T and R ``[n, 3]`` for per-link offset ratios (SPEC §1)."""
+        link = self.link
+        distance = offset_ratio * (link.tx_depth + link.rx_height)
+        phi = math.radians(link.offset_azimuth_deg)
+        tx = torch.zeros(offset_ratio.numel(), 3, dtype=torch.float64)
+        tx[:, 2] = -link.tx_depth
+        rx = torch.stack(
+            (distance * math.cos(phi), distance * math.sin(phi), torch.full_like(distance, link.rx_height)), -1
+        )
+        return tx.to(self.device, self.float_dtype), rx.to(self.device, self.float_dtype)
+
+    def _apply_action(self, action: torch.Tensor) -> None:
+        if self.config.action_mode == "absolute":
+            tx, rx = action[:, :2] * self.config.max_tilt, action[:, 2:] * self.config.max_tilt
+        else:
+            tx, rx = self.tx_tilt + action[:, :2] * self._slew_step, self.rx_tilt + action[:, 2:] * self._slew_step
+        self.tx_tilt, self.rx_tilt = self._limit_tilt(tx), self._limit_tilt(rx)
+
+    def _limit_tilt(self, tilt: torch.Tensor) -> torch.Tensor:
+        norm = torch.linalg.vector_norm(tilt, dim=-1, keepdim=True)
+        return tilt * (self.config.max_tilt / norm.clamp(min=self.config.max_tilt))
+
+    def _record(self, path, rows: torch.Tensor) -> None:
+        """Store the path's gains for ``rows`` and the warm start of the next solve."""
+        tx_dir, rx_dir = pointing(self.tx_tilt[rows], up=True), pointing(self.rx_tilt[rows], up=False)
+        gain = channel_gain(path, tx_dir, rx_dir, self.optics)
+        intensity = gain.gain / self.reference_gain[rows]
+        # An invalid path restarts its next solve from the calm-sea point rather than a lost one.
+        self.point[rows] = torch.where(path.valid.unsqueeze(-1), path.point, self.flat_point[rows])
+        self.history[rows] = torch.cat(
+            (intensity_feature(self.measurement["intensity"][rows]).unsqueeze(-1), self.history[rows, :-1]), dim=-1
+        )
+        self.measurement[rows] = TensorDict(
+            {
+                "gain": gain.gain,
+                "gain_upper_bound": gain_upper_bound(path, self.optics),
+                "intensity": intensity,
+                "path_valid": path.valid,
+                "alpha_d": gain.alpha_d,
+                "alpha_a": gain.alpha_a,
+                "departure": path.departure,
+                "arrival": path.arrival,
+                "spot": self._spot(path.arrival, rx_dir, gain.arrival > 0),
+            },
+            batch_size=[rows.numel()],
+        )
+
+    def _spot(self, arrival: torch.Tensor, boresight: torch.Tensor, lit: torch.Tensor) -> torch.Tensor:
+        """Arrival direction −u_a in the receiver frame, over tan ω_A (quadrant-detector position)."""
+        incoming = -arrival
+        along = (incoming * boresight).sum(-1, keepdim=True)
+        across = incoming - along * boresight
+        east = torch.zeros_like(boresight)
+        east[:, 0] = 1.0
+        e1 = east - (east * boresight).sum(-1, keepdim=True) * boresight
+        e1 = e1 / torch.linalg.vector_norm(e1, dim=-1, keepdim=True)
+        e2 = torch.linalg.cross(boresight, e1, dim=-1)
+        spot = torch.stack(((across * e1).sum(-1), (across * e2).sum(-1)), -1) / (
+            along.clamp(min=1e-6) * math.tan(self.optics.half_fov)
+        )
+        return torch.where(lit.unsqueeze(-1), spot, torch.zeros_like(spot))
+
+    def _output(self) -> TensorDict:
+        m = self.measurement
+        parts = [
+            pointing(self.tx_tilt, up=True),
+            pointing(self.rx_tilt, up=False),
+            intensity_feature(m["intensity"]).unsqueeze(-1),
+            (self.time / self.config.episode_seconds).unsqueeze(-1),
+        ]
+        if "spot" in self.config.observation_extras:
+            parts.append(m["spot"])
+        if "history" in self.config.observation_extras:
+            parts.append(self.history)
+        out = TensorDict(
+            {key: m[key].clone() for key in MEASUREMENT_KEYS},
+            batch_size=self.batch_size,
+            device=self.device,
+        )
+        out.update(
+            {
+                "observation": torch.cat(parts, dim=-1),
+                "tx_position": self.tx_position.clone(),
+                "rx_position": self.rx_position.clone(),
+            }
+        )
+        return out
