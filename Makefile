@@ -5,7 +5,7 @@ PYTHON := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= outputs
 
-.PHONY: install test lint figures bench clean
+.PHONY: install train test figures bench clean
 
 install: $(STAMP)
 
@@ -15,15 +15,19 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m pip install --quiet --disable-pip-version-check -e '.[dev,gym]'
 	touch $(STAMP)
 
+train: $(STAMP)
+	$(PYTHON) train.py $(ARGS)
+
 test: $(STAMP)
-	$(VENV)/bin/ruff check waterair tests
+	$(VENV)/bin/ruff check waterair tests train.py
 	$(PYTHON) -m pytest -q
 
 figures: $(STAMP)
 	$(PYTHON) -m waterair.figures --out $(OUT)/figures
 
 bench: $(STAMP)
-	$(PYTHON) -m waterair.bench physics --out $(OUT)/bench/physics.json
+	$(PYTHON) -m waterair.bench physics --compile --out $(OUT)/bench/physics.json
+	$(PYTHON) -m waterair.bench env --compile --out $(OUT)/bench/env.json
 
 clean:
 	rm -rf $(VENV) *.egg-info .pytest_cache .ruff_cache

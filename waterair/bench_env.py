@@ -30,11 +30,12 @@ def worker(batch: int, solver: str, compile_kernel: bool, device: str) -> dict:
     td = env.reset()
     generator = torch.Generator().manual_seed(0)
     td["action"] = (2 * torch.rand(batch, 4, generator=generator) - 1).to(env.device)
-    start = time.perf_counter()
-    for _ in range(3):  # warm-up: compilation, allocator
+    for _ in range(10):  # warm-up: compilation, allocator
         td = env.step(td)["next"].set("action", td["action"])
-    warm_step = (time.perf_counter() - start) / 3
-    steps = max(5, int(SECONDS_PER_MEASUREMENT / warm_step))
+    start = time.perf_counter()
+    for _ in range(3):
+        td = env.step(td)["next"].set("action", td["action"])
+    steps = max(5, int(SECONDS_PER_MEASUREMENT / ((time.perf_counter() - start) / 3)))
     iterations = []
 
     def step_loop():

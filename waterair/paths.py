@@ -199,10 +199,15 @@ class _Fermat:
 def _fermat(surface, xy, t, tx, rx, n_w, n_a) -> _Fermat:
     """L, ∇L and ∇²L at surface points ``xy`` ``[m, 2]`` (see :func:`fermat_terms`)."""
     time = torch.as_tensor(t, dtype=xy.dtype, device=xy.device).expand(xy.shape[0]).contiguous()
-    terms = _compiled_fermat() if compiled_kernel_enabled() else fermat_terms
-    return _Fermat(
-        *terms(surface.omega, surface.phase, surface.kx, surface.ky, surface.amplitude, xy, time, tx, rx, n_w, n_a)
-    )
+    inputs = (surface.omega, surface.phase, surface.kx, surface.ky, surface.amplitude, xy, time, tx, rx)
+    if not compiled_kernel_enabled():
+        return _Fermat(*fermat_terms(*inputs, n_w, n_a))
+    if xy.shape[0] == 1:
+        # torch.compile specialises size 1: a lone row would compile a second graph (~1 s) the
+        # first time a working set shrinks to it. Evaluate it twice instead and keep one.
+        inputs = tuple(v.expand(2, *v.shape[1:]).contiguous() for v in inputs)
+        return _Fermat(*(v[:1] for v in _compiled_fermat()(*inputs, n_w, n_a)))
+    return _Fermat(*_compiled_fermat()(*inputs, n_w, n_a))
 
 
 def fermat_terms(omega, phase, kx, ky, amplitude, xy, t, tx, rx, n_w: float, n_a: float):

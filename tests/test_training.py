@@ -1,0 +1,147 @@
+"""train.py and waterair.training: short runs, resume, sweeps, config errors (issue 4)."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+from waterair.training import train
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = [
+    "env.num_envs=8",
+    "env.n_freq=16",
+    "env.n_dir=8",
+    "env.max_steps=50",
+    "collector.frames_per_batch=400",
+    "collector.init_random_frames=400",
+    "checkpoint.every_frames=800",
+    "eval.realisations=4",
+    "eval.steps=20",
+    "logger.progress_bar=false",
+    "buffer.capacity=20000",
+    "actor.hidden=[32,32]",
+    "critic.hidden=[32,32]",
+]
+SCALARS = {
+    "train/episode_reward",
+    "train/mean_gain",
+    "train/gain_ratio_ub",
+    "train/outage",
+    "train/noise_scale",
+    "loss/actor",
+    "loss/critic",
+    "time/frames_per_s",
+}
+
+
+def compose_cfg(*overrides):
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        return compose(config_name="config", overrides=[*TINY, *overrides])
+
+
+def scalars(run_dir: Path) -> dict:
+    events = EventAccumulator(str(run_dir / "tensorboard"))
+    events.Reload()
+    return {tag: [(e.step, e.value) for e in events.Scalars(tag)] for tag in events.Tags()["scalars"]}
+
+
+def run_cli(*args, timeout=300, **popen):
+    return subprocess.run(
+        [sys.executable, "train.py", *args], cwd=ROOT, capture_output=True, text=True, timeout=timeout, **popen
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("extra", [[], ["agent=td3"], ["noise=ou"]], ids=["ddpg", "td3", "ou"])
+def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, extra):
+    metrics = train(compose_cfg("total_frames=1600", *extra), tmp_path)
+    assert metrics["frames"] == 1600 and metrics["updates"] > 0
+    logged = scalars(tmp_path)
+    assert SCALARS <= set(logged), SCALARS - set(logged)
+    for tag in ("loss/actor", "loss/critic"):
+        assert all(torch.isfinite(torch.tensor(v)) for _, v in logged[tag])
+    state = torch.load(tmp_path / "checkpoints" / "last.pt", weights_only=True)
+    assert state["frames"] == 1600 and "loss" in state and "optim_critic" in state
+    assert json.loads((tmp_path / "final_metrics.json").read_text())["frames"] == 1600
+    rows = (tmp_path / "metrics.csv").read_text().splitlines()
+    assert rows[0].startswith("frames,") and len(rows) == 1 + 4
+
+
+@pytest.mark.slow
+def test_killed_run_resumes_to_the_configured_frames(tmp_path):
+    run_dir = tmp_path / "run"
+    args = [*TINY, "total_frames=2400", "checkpoint.every_frames=400", f"hydra.run.dir={run_dir}"]
+    process = subprocess.Popen(
+        [sys.executable, "train.py", *args], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    checkpoint = run_dir / "checkpoints" / "last.pt"
+    deadline = time.time() + 240
+    while time.time() < deadline and process.poll() is None:
+        if checkpoint.exists() and torch.load(checkpoint, weights_only=True)["frames"] >= 800:
+            break
+        time.sleep(0.2)
+    assert process.poll() is None, "the run finished before it could be killed"
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    killed_at = torch.load(checkpoint, weights_only=True)["frames"]
+    assert 800 <= killed_at < 2400
+
+    done = run_cli(f"resume={run_dir}")
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert torch.load(checkpoint, weights_only=True)["frames"] == 2400
+    assert json.loads((run_dir / "final_metrics.json").read_text())["frames"] == 2400
+    steps = [step for step, _ in scalars(run_dir)["train/mean_gain"]]
+    assert steps == sorted(set(steps)) and steps[0] == 400 and steps[-1] == 2400
+    assert len(steps) == 2400 // 400  # no step logged twice, none restarted at 0
+
+
+@pytest.mark.slow
+def test_multirun_with_joblib_writes_a_summary(tmp_path):
+    done = run_cli(
+        "-m",
+        *TINY,
+        "total_frames=800",
+        "env.wind=8,12",
+        "hydra/launcher=joblib",
+        "hydra.launcher.n_jobs=2",
+        f"hydra.sweep.dir={tmp_path}",
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    lines = (tmp_path / "summary.csv").read_text().splitlines()
+    assert len(lines) == 3
+    assert "env.wind=8" in lines[1] and "env.wind=12" in lines[2]
+    assert "agent/mean_gain" in lines[0]
+
+
+@pytest.mark.parametrize(
+    "override,key",
+    [
+        ("env.wind=-3", "env.wind = -3"),
+        ("agent.gamma=1.5", "agent.gamma = 1.5"),
+        ("buffer.batch_size=0", "buffer.batch_size = 0"),
+        ("reward.b=0", "reward.b = 0"),
+        ("collector.frames_per_batch=401", "collector.frames_per_batch = 401"),
+    ],
+)
+def test_invalid_config_exits_before_training_with_one_line(override, key, tmp_path):
+    done = run_cli(override, f"hydra.run.dir={tmp_path}", timeout=120)
+    assert done.returncode != 0
+    message = done.stderr.strip().splitlines()
+    assert len(message) == 1 and message[0].startswith(f"error: {key}"), done.stderr
+    assert not (tmp_path / "checkpoints").exists()
+
+
+def test_unknown_key_is_rejected(tmp_path):
+    done = run_cli("env.wnd=3", f"hydra.run.dir={tmp_path}", timeout=120)
+    assert done.returncode != 0
+    assert "wnd" in done.stderr and "Traceback" not in done.stderr

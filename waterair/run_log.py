@@ -1,0 +1,56 @@
+"""Scalars of a training run: TensorBoard event files plus a CSV with the same rows.
+
+Tags are namespaced (``train/``, ``loss/``, ``time/``, ``eval/``); the step is the number of
+environment frames, so a resumed run continues the same curves. On resume, TensorBoard events
+and CSV rows written after the checkpoint are discarded (``purge_step``), so nothing is counted
+twice.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+from torch.utils.tensorboard import SummaryWriter
+
+
+class RunLog:
+    """TensorBoard + CSV logger writing under ``run_dir``."""
+
+    def __init__(self, run_dir: Path, resume_frames: int | None = None):
+        self.run_dir = Path(run_dir)
+        self.csv_path = self.run_dir / "metrics.csv"
+        # purge_step drops events at or after it; the checkpoint's own step is kept.
+        purge = None if resume_frames is None else resume_frames + 1
+        self.writer = SummaryWriter(str(self.run_dir / "tensorboard"), purge_step=purge)
+        self._rows: list[dict] = []
+        if resume_frames is not None and self.csv_path.exists():
+            with self.csv_path.open(newline="") as handle:
+                self._rows = [row for row in csv.DictReader(handle) if int(float(row["frames"])) <= resume_frames]
+
+    def text(self, tag: str, text: str) -> None:
+        self.writer.add_text(tag, text)
+
+    def scalars(self, frames: int, values: dict[str, float], *, csv_row: bool = True) -> None:
+        """Log ``values`` (tag → number) at step ``frames`` to TensorBoard and, with ``csv_row``, the CSV."""
+        for tag, value in values.items():
+            self.writer.add_scalar(tag, value, frames)
+        if csv_row:
+            self._rows.append({"frames": frames, **values})
+            self._write_csv()
+
+    def hparams(self, params: dict, metrics: dict[str, float]) -> None:
+        self.writer.add_hparams(params, metrics, run_name="hparams")
+
+    def close(self) -> None:
+        self.writer.flush()
+        self.writer.close()
+
+    def _write_csv(self) -> None:
+        columns = ["frames"] + sorted({key for row in self._rows for key in row} - {"frames"})
+        temporary = self.csv_path.with_suffix(".csv.tmp")
+        with temporary.open("w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=columns)
+            writer.writeheader()
+            writer.writerows(self._rows)
+        temporary.replace(self.csv_path)
