@@ -145,3 +145,18 @@ def test_unknown_key_is_rejected(tmp_path):
     done = run_cli("env.wnd=3", f"hydra.run.dir={tmp_path}", timeout=120)
     assert done.returncode != 0
     assert "wnd" in done.stderr and "Traceback" not in done.stderr
+
+
+@pytest.mark.parametrize("resume", [None, "outputs/train/some-run"])
+def test_run_dir_defaults_to_a_dated_folder_and_resume_continues_in_place(resume):
+    from hydra.core.hydra_config import HydraConfig  # noqa: F401  (resolver registered by waterair.training)
+    from omegaconf import OmegaConf
+
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        overrides = [] if resume is None else [f"resume={resume}"]
+        cfg = compose(config_name="config", overrides=overrides, return_hydra_config=True)
+    run_dir = OmegaConf.to_container(cfg.hydra.run, resolve=True)["dir"]
+    if resume is None:
+        assert run_dir.startswith("outputs/train/20")
+    else:
+        assert run_dir == resume

@@ -36,6 +36,11 @@ from waterair.metrics import summarise
 from waterair.rewards import Reward
 
 ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
+
+# hydra.run.dir is ${run_dir_or:${resume},outputs/...}: a resumed run continues in its own folder.
+# (oc.select would not do: it keeps resume's explicit null.) Registered at import, before Hydra
+# composes the config.
+OmegaConf.register_new_resolver("run_dir_or", lambda run, default: default if run is None else run, replace=True)
 TRANSITION_KEYS = (
     "observation",
     "action",
