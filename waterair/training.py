@@ -92,7 +92,7 @@ def train(cfg: DictConfig, run_dir: Path) -> dict[str, float]:
 
     steps_per_batch = cfg.collector.frames_per_batch // cfg.env.num_envs
     bar = tqdm(total=cfg.total_frames, initial=progress.frames, disable=not cfg.logger.progress_bar, unit="frame")
-    last_checkpoint = progress.frames
+    last_checkpoint, episode_reward = progress.frames, float("nan")
     clock = time.perf_counter()
     for batch in collector:
         env_seconds = time.perf_counter() - clock
@@ -110,10 +110,8 @@ def train(cfg: DictConfig, run_dir: Path) -> dict[str, float]:
         progress.episodes += int(batch["next", "done"].sum())
         log.scalars(progress.frames, scalars)
         bar.update(batch.numel())
-        bar.set_postfix(
-            reward=f"{scalars.get('train/episode_reward', float('nan')):.2f}",
-            gain_ub=f"{scalars['train/gain_ratio_ub']:.3f}",
-        )
+        episode_reward = scalars.get("train/episode_reward", episode_reward)  # episodes end every few batches
+        bar.set_postfix(episode_reward=f"{episode_reward:.2f}", gain_ub=f"{scalars['train/gain_ratio_ub']:.3f}")
         if progress.frames - last_checkpoint >= cfg.checkpoint.every_frames or progress.frames >= cfg.total_frames:
             save_checkpoint(run_dir, progress, loss, exploration, optim_actor, optim_critic, env, buffer, cfg)
             last_checkpoint = progress.frames
