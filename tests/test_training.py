@@ -131,6 +131,7 @@ def test_multirun_with_joblib_writes_a_summary(tmp_path):
         ("buffer.batch_size=0", "buffer.batch_size = 0"),
         ("reward.b=0", "reward.b = 0"),
         ("collector.frames_per_batch=401", "collector.frames_per_batch = 401"),
+        ("total_frames=1000", "total_frames = 1000"),
     ],
 )
 def test_invalid_config_exits_before_training_with_one_line(override, key, tmp_path):

@@ -163,6 +163,11 @@ def validate(cfg: DictConfig) -> None:
             f"collector.frames_per_batch = {frames_per_batch} is not allowed; it must be a multiple of "
             f"env.num_envs = {num_envs}"
         )
+    if cfg.total_frames % frames_per_batch:
+        raise ValueError(
+            f"total_frames = {cfg.total_frames} is not allowed; it must be a multiple of "
+            f"collector.frames_per_batch = {frames_per_batch} so that a run collects exactly that many frames"
+        )
     check_int("collector.init_random_frames", cfg.collector.init_random_frames, 0)
     check_range("collector.updates_per_frame", cfg.collector.updates_per_frame, 0.0, 64.0, low_open=True)
     check_int("checkpoint.every_frames", cfg.checkpoint.every_frames, 1)
