@@ -25,6 +25,7 @@ from pathlib import Path
 import torch
 
 from waterair.channel import LinkGeometry
+from waterair.env_config import resolve_device
 from waterair.paths import solve_path
 from waterair.sea import SeaState
 from waterair.surface import WaveSurface, use_compiled_kernel
@@ -131,13 +132,6 @@ def machine(device: torch.device, dtype: torch.dtype) -> dict:
         "torch": torch.__version__,
         "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
     }
-
-
-def resolve_device(name: str) -> torch.device:
-    """``auto`` → CUDA when available, else CPU."""
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(name)
 
 
 def _sync(device: torch.device) -> None:

@@ -75,7 +75,8 @@ def worker(batch: int, solver: str, compile_kernel: bool, device: str) -> dict:
 
 def bench_env(sizes, centroid_sizes, compile_kernel: bool, device: str) -> dict:
     """Run every (B, solver) point in its own process and collect the records."""
-    from waterair.bench import machine, resolve_device
+    from waterair.bench import machine
+    from waterair.env_config import resolve_device
 
     rows = []
     for solver, solver_sizes in (("newton", sizes), ("centroid", centroid_sizes)):

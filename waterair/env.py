@@ -13,7 +13,7 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from waterair.channel import calm_sea_gains, channel_gain, gain_upper_bound, pointing
-from waterair.env_config import EnvConfig
+from waterair.env_config import EnvConfig, resolve_device
 from waterair.paths import flat_sea_point, solve_path
 from waterair.rewards import Reward
 from waterair.surface import WaveSurface, use_compiled_kernel
@@ -75,12 +75,7 @@ class WaterAirEnv(EnvBase):
 
     def __init__(self, config: EnvConfig | None = None, *, reward: Reward | None = None, **overrides):
         config = (config or EnvConfig()).replace(**overrides) if overrides else (config or EnvConfig())
-        device = (
-            torch.device("cuda" if torch.cuda.is_available() else "cpu")
-            if config.device == "auto"
-            else torch.device(config.device)
-        )
-        super().__init__(device=device, batch_size=torch.Size([config.num_envs]))
+        super().__init__(device=resolve_device(config.device), batch_size=torch.Size([config.num_envs]))
         if config.compile_kernel:
             use_compiled_kernel(True)
         self.config = config
@@ -96,7 +91,7 @@ class WaterAirEnv(EnvBase):
         self._generator = torch.Generator()
         self._set_seed(config.seed)
         self._allocate_state()
-        self._reset_rows(torch.arange(config.num_envs, device=device))
+        self._reset_rows(torch.arange(config.num_envs, device=self.device))
 
     # --- TorchRL interface ------------------------------------------------------------------
 

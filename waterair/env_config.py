@@ -12,6 +12,8 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+import torch
+
 from waterair._validation import check_choice, check_int, check_range
 from waterair.channel import LinkGeometry, Transceiver
 from waterair.paths import METHODS
@@ -141,6 +143,13 @@ class EnvConfig:
     @property
     def episode_seconds(self) -> float:
         return self.dt * self.max_steps
+
+
+def resolve_device(name: str) -> torch.device:
+    """``auto`` → CUDA when available, else CPU; ``cpu``/``cuda`` as given."""
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
 
 
 def _check_pair(name: str, pair: Sequence[float], low: float, high: float, unit: str) -> tuple[float, float]:

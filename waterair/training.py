@@ -31,7 +31,7 @@ from tqdm import tqdm
 from waterair._validation import check_choice, check_int, check_range
 from waterair.baselines import FlatSeaSnell, StraightFacing
 from waterair.env import WaterAirEnv
-from waterair.env_config import EnvConfig
+from waterair.env_config import EnvConfig, resolve_device
 from waterair.metrics import summarise
 from waterair.rewards import Reward
 
@@ -67,7 +67,7 @@ def train(cfg: DictConfig, run_dir: Path) -> dict[str, float]:
     run_dir = Path(run_dir)
     validate(cfg)
     resumed = bool(cfg.resume) and (run_dir / CHECKPOINT).exists()
-    device = _device(cfg.device)
+    device = resolve_device(cfg.device)
     torch.manual_seed(cfg.seed)
     (run_dir / "checkpoints").mkdir(parents=True, exist_ok=True)
     (run_dir / "config.yaml").write_text(OmegaConf.to_yaml(cfg, resolve=True))
@@ -440,10 +440,6 @@ def _hparams(cfg: DictConfig) -> dict:
     flat["env.wind"] = cfg.env.wind
     flat["env.offset_ratio"] = cfg.env.offset_ratio
     return flat
-
-
-def _device(name: str) -> torch.device:
-    return torch.device("cuda" if name == "auto" and torch.cuda.is_available() else ("cpu" if name == "auto" else name))
 
 
 def _write_json(path: Path, data: dict) -> None:
