@@ -57,10 +57,18 @@ class LinkGeometry:
 
     def positions(self, dtype: torch.dtype = torch.float32, device=None) -> tuple[torch.Tensor, torch.Tensor]:
         """Transmitter T = (0, 0, −tx_depth) and receiver R = (D cos φ, D sin φ, rx_height), each ``[3]``."""
+        tx, rx = self.positions_for(torch.tensor([self.offset_ratio], dtype=torch.float64))
+        return tx[0].to(device, dtype), rx[0].to(device, dtype)
+
+    def positions_for(self, offset_ratio: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """T and R ``[n, 3]`` (m) for per-link offset ratios ``[n]`` (domain randomisation), in their dtype."""
+        distance = offset_ratio * (self.tx_depth + self.rx_height)
         phi = math.radians(self.offset_azimuth_deg)
-        offset = self.horizontal_offset
-        tx = torch.tensor([0.0, 0.0, -self.tx_depth], dtype=dtype, device=device)
-        rx = torch.tensor([offset * math.cos(phi), offset * math.sin(phi), self.rx_height], dtype=dtype, device=device)
+        tx = torch.zeros(*offset_ratio.shape, 3, dtype=offset_ratio.dtype, device=offset_ratio.device)
+        tx[..., 2] = -self.tx_depth
+        rx = torch.stack(
+            (distance * math.cos(phi), distance * math.sin(phi), torch.full_like(distance, self.rx_height)), -1
+        )
         return tx, rx
 
 
@@ -153,7 +161,7 @@ def channel_gain(path: PathSolution, tx_dir: torch.Tensor, rx_dir: torch.Tensor,
 def gain_upper_bound(path: PathSolution, optics: Transceiver) -> torch.Tensor:
     """G_UB = G_p G_ref n_c² / sin² ω_A: both ends pointed along the path (SPEC §6), ``[B]`` (1/m²)."""
     g_p, g_ref = _path_terms(path, optics)
-    return g_p * g_ref * optics.concentrator_index**2 / math.sin(optics.half_fov) ** 2
+    return g_p * g_ref * _peak_arrival_gain(optics)
 
 
 def calm_sea_gain(link: LinkGeometry, optics: Transceiver, dtype: torch.dtype = torch.float64) -> float:
@@ -170,7 +178,7 @@ def calm_sea_gains(tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver) -> t
     theta1 = torch.acos(((point - tx)[:, 2] / d_water).clamp(-1.0, 1.0))
     g_p = path_gain(d_water, d_air, optics.attenuation_per_m)
     g_ref = fresnel_transmittance(theta1, optics.n_water, optics.n_air)
-    return g_p * g_ref * optics.concentrator_index**2 / math.sin(optics.half_fov) ** 2
+    return g_p * g_ref * _peak_arrival_gain(optics)
 
 
 def pointing(tilt: torch.Tensor, up: bool) -> torch.Tensor:
@@ -181,6 +189,11 @@ def pointing(tilt: torch.Tensor, up: bool) -> torch.Tensor:
     """
     vertical = torch.sqrt(torch.clamp(1.0 - (tilt**2).sum(-1, keepdim=True), min=0.0))
     return torch.cat((tilt, vertical if up else -vertical), dim=-1)
+
+
+def _peak_arrival_gain(optics: Transceiver) -> float:
+    """G_A at α_A = 0: n_c² / sin² ω_A (SPEC §4)."""
+    return optics.concentrator_index**2 / math.sin(optics.half_fov) ** 2
 
 
 def _path_terms(path: PathSolution, optics: Transceiver) -> tuple[torch.Tensor, torch.Tensor]:

@@ -235,7 +235,7 @@ class WaterAirEnv(EnvBase):
             if config.offset_range
             else torch.full((count,), config.offset_ratio, dtype=torch.float64)
         )
-        tx, rx = self._positions(offset)
+        tx, rx = (v.to(self.device, dtype) for v in self.link.positions_for(offset))
         self.tx_position[rows], self.rx_position[rows] = tx, rx
         self.reference_gain[rows] = calm_sea_gains(tx.double(), rx.double(), self.optics).to(dtype)
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)
@@ -260,18 +260,6 @@ class WaterAirEnv(EnvBase):
     def _uniform(self, bounds: tuple[float, float], count: int) -> torch.Tensor:
         low, high = bounds
         return low + (high - low) * torch.rand(count, generator=self._generator, dtype=torch.float64)
-
-    def _positions(self, offset_ratio: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """T and R ``[n, 3]`` for per-link offset ratios (SPEC §1)."""
-        link = self.link
-        distance = offset_ratio * (link.tx_depth + link.rx_height)
-        phi = math.radians(link.offset_azimuth_deg)
-        tx = torch.zeros(offset_ratio.numel(), 3, dtype=torch.float64)
-        tx[:, 2] = -link.tx_depth
-        rx = torch.stack(
-            (distance * math.cos(phi), distance * math.sin(phi), torch.full_like(distance, link.rx_height)), -1
-        )
-        return tx.to(self.device, self.float_dtype), rx.to(self.device, self.float_dtype)
 
     def _apply_action(self, action: torch.Tensor) -> None:
         if self.config.action_mode == "absolute":
