@@ -125,6 +125,37 @@ def test_domain_randomisation_draws_per_link_values():
     assert variance.max() > 5 * variance.min()  # 4 vs 20 m/s seas differ a lot
 
 
+def test_per_link_values_cycle_through_scenario_points():
+    winds, offsets = (4.0, 12.0, 20.0), (0.0, 0.25, 0.5)
+    env = small_env(num_envs=6, wind_values=winds, offset_values=offsets)
+    measured = torch.linalg.vector_norm(env.rx_position[:, :2] - env.tx_position[:, :2], dim=-1) / 20.0
+    torch.testing.assert_close(measured, torch.tensor(offsets * 2), atol=1e-6, rtol=0)
+    variance = env.surface.variance().double()
+    # link i and link i + 3 share a point; the variance grows with the wind at every point (m0 ∝ U² here)
+    assert (variance[1] > 3 * variance[0]) and (variance[2] > variance[1])
+    assert (variance[4] > 3 * variance[3]) and (variance[5] > variance[4])
+    # G_0 is computed per link from that link's own offset
+    assert env.reference_gain[0] > env.reference_gain[1] > env.reference_gain[2]
+    torch.testing.assert_close(env.reference_gain[:3], env.reference_gain[3:])
+
+
+def test_replicas_share_their_seas_and_points_but_not_their_pointing():
+    env = small_env(num_envs=6, replicas=3, offset_values=(0.3, 0.4))  # far enough that no alignment gets ~0
+    td = env.reset()
+    for k in (1, 2):
+        for name in ("omega", "kx", "ky", "amplitude", "phase"):
+            assert torch.equal(getattr(env.surface, name)[2 * k : 2 * k + 2], getattr(env.surface, name)[:2]), name
+        torch.testing.assert_close(env.rx_position[2 * k : 2 * k + 2], env.rx_position[:2], rtol=0, atol=0)
+    assert not torch.equal(env.surface.phase[0], env.surface.phase[1])  # the two distinct links differ
+    # different actions on identical seas: the same paths (and G_UB), different gains
+    action = torch.zeros(6, 4)
+    action[2:4] = env.action_for_pointing(td["departure"][2:4], -td["arrival"][2:4])
+    td["action"] = action
+    nxt = env.step(td)["next"]
+    torch.testing.assert_close(nxt["gain_upper_bound"][2:4], nxt["gain_upper_bound"][:2], rtol=0, atol=0)
+    assert (nxt["gain"][2:4] > 10 * nxt["gain"][:2]).all()
+
+
 def test_spot_extra_is_zero_without_light_and_centred_when_aligned():
     env = small_env(num_envs=2, observation_extras=("spot",))
     td = env.reset()
@@ -150,6 +181,9 @@ def test_spot_extra_is_zero_without_light_and_centred_when_aligned():
         ({"max_tilt_deg": 95.0}, "env.max_tilt_deg"),
         ({"observation_extras": ("camera",)}, "env.observation_extras"),
         ({"wind_range": (5.0, 2.0)}, "env.wind_range[1]"),
+        ({"wind_values": (12.0, 0.0)}, "env.wind_values[1]"),
+        ({"offset_values": (0.1, 11.0)}, "env.offset_values[1]"),
+        ({"num_envs": 6, "replicas": 4}, "env.replicas"),
         ({"solver": "bisection"}, "env.solver"),
         ({"half_fov": 2.0}, "env.half_fov"),
     ],
@@ -160,6 +194,19 @@ def test_config_errors_name_key_value_and_range(kwargs, key):
     message = str(info.value)
     assert message.startswith(f"{key} = "), message
     assert "allowed" in message or "choose one of" in message
+
+
+@pytest.mark.parametrize(
+    "kwargs,match",
+    [
+        ({"wind_values": (), "offset_values": None}, "env.wind_values = \\[\\] must list"),
+        ({"wind_values": (8.0,), "wind_range": (4.0, 20.0)}, "env.wind_values and env.wind_range are both set"),
+        ({"wind_values": (8.0, 12.0), "offset_values": (0.1,)}, "env.wind_values has 2 entries"),
+    ],
+)
+def test_per_link_values_must_be_consistent(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        EnvConfig(**kwargs)
 
 
 def test_unknown_config_key_is_an_error():

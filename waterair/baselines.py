@@ -19,7 +19,7 @@ from waterair.paths import flat_sea_point
 class PointingPolicy(TensorDictModuleBase):
     """Base class: subclasses say where each end should point; this turns it into an action."""
 
-    in_keys = ["tx_position", "rx_position"]
+    in_keys = ["tx_position", "rx_position", "observation"]
     out_keys = ["action"]
     name = "pointing"
 
@@ -33,7 +33,11 @@ class PointingPolicy(TensorDictModuleBase):
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         tx_dir, rx_dir = self.directions(tensordict)
-        tensordict.set("action", self.env.action_for_pointing(tx_dir, rx_dir))
+        # The present tilts come from the observation's pointing vectors (tx 0:3, rx 3:6), so the
+        # policy also acts correctly on a slice of the batch.
+        observation = tensordict.get("observation")
+        current = torch.cat((observation[:, 0:2], observation[:, 3:5]), dim=-1)
+        tensordict.set("action", self.env.action_for_pointing(tx_dir, rx_dir, current))
         return tensordict
 
 
@@ -76,7 +80,7 @@ class PreviousPathTracking(PointingPolicy):
     flat-sea path where the previous path was invalid.
     """
 
-    in_keys = ["tx_position", "rx_position", "departure", "arrival", "path_valid"]
+    in_keys = ["tx_position", "rx_position", "observation", "departure", "arrival", "path_valid"]
     name = "tracking"
 
     def directions(self, tensordict):

@@ -60,8 +60,12 @@ class WaterAirEnv(EnvBase):
     is the aligned calm-sea gain of the same geometry.
 
     **Start**: new sea phases and jittered frequencies per link (and wind / offset drawn from their
-    ranges when domain randomisation is configured), transmitter straight up, receiver straight
-    down, t = 0. A ``_reset`` mask resets only the masked links.
+    ranges when domain randomisation is configured, or taken from ``wind_values`` /
+    ``offset_values``, link i using entry i mod their length), transmitter straight up, receiver
+    straight down, t = 0. A ``_reset`` mask resets only the masked links. With ``replicas`` = k the
+    batch is k copies of B / k links: link i and link i + B / k get the same sea (and wind and
+    offset) whenever they reset together, as in a rollout: common random numbers, for comparing
+    policies on identical seas in one batch.
 
     **Termination**: none; ``truncated`` (and ``done``) after ``max_steps`` steps (500 → 25 s).
 
@@ -82,11 +86,7 @@ class WaterAirEnv(EnvBase):
         self.reward_fn = reward or Reward()
         self.sea, self.link, self.optics = config.sea(), config.link(), config.transceiver()
         self.float_dtype = getattr(torch, config.dtype)
-        self.observation_size = (
-            8
-            + 2 * ("spot" in config.observation_extras)
-            + config.history_length * ("history" in config.observation_extras)
-        )
+        self.observation_size = config.observation_size
         self._make_specs()
         self._generator = torch.Generator()
         self._set_seed(config.seed)
@@ -151,17 +151,21 @@ class WaterAirEnv(EnvBase):
 
     # --- helpers for policies ---------------------------------------------------------------
 
-    def action_for_pointing(self, tx_dir: torch.Tensor, rx_dir: torch.Tensor) -> torch.Tensor:
-        """The action ``[B, 4]`` that best points the ends along ``tx_dir`` (up) and ``rx_dir`` (down).
+    def action_for_pointing(
+        self, tx_dir: torch.Tensor, rx_dir: torch.Tensor, current: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """The action ``[n, 4]`` that best points the ends along ``tx_dir`` (up) and ``rx_dir`` (down).
 
         Absolute mode: the target tilts (clipped to the action box); delta mode: the step toward
-        them allowed by the slew limit.
+        them allowed by the slew limit, from the ``current`` tilts ``[n, 4]`` (tx_vx, tx_vy,
+        rx_vx, rx_vy; default: the whole batch's present pointing).
         """
         target = torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1).to(self.float_dtype)
         if self.config.action_mode == "absolute":
             return (target / self.config.max_tilt).clamp(-1.0, 1.0)
-        current = torch.cat((self.tx_tilt, self.rx_tilt), dim=-1)
-        return ((target - current) / self._slew_step).clamp(-1.0, 1.0)
+        if current is None:
+            current = torch.cat((self.tx_tilt, self.rx_tilt), dim=-1)
+        return ((target - current.to(self.float_dtype)) / self._slew_step).clamp(-1.0, 1.0)
 
     # --- internals --------------------------------------------------------------------------
 
@@ -225,16 +229,15 @@ class WaterAirEnv(EnvBase):
 
     def _reset_rows(self, rows: torch.Tensor) -> None:
         """New seas, geometry, pointing and a cold path solve for ``rows`` (``[n]`` indices)."""
-        config, count, dtype = self.config, rows.numel(), self.float_dtype
-        wind = self._uniform(config.wind_range, count) if config.wind_range else None
-        self.surface[rows] = WaveSurface.sample(
-            self.sea, count, generator=self._generator, device=self.device, dtype=dtype, wind=wind
+        config, dtype = self.config, self.float_dtype
+        # Replicas share their random draws: draw once per distinct link, then copy to each replica.
+        distinct, copy = torch.unique(rows % (config.num_envs // config.replicas), return_inverse=True)
+        wind = self._per_link(config.wind_range, config.wind_values, None, distinct)
+        surface = WaveSurface.sample(
+            self.sea, distinct.numel(), generator=self._generator, device=self.device, dtype=dtype, wind=wind
         )
-        offset = (
-            self._uniform(config.offset_range, count)
-            if config.offset_range
-            else torch.full((count,), config.offset_ratio, dtype=torch.float64)
-        )
+        self.surface[rows] = surface[copy.to(self.device)] if config.replicas > 1 else surface
+        offset = self._per_link(config.offset_range, config.offset_values, config.offset_ratio, distinct)[copy.cpu()]
         tx, rx = (v.to(self.device, dtype) for v in self.link.positions_for(offset))
         self.tx_position[rows], self.rx_position[rows] = tx, rx
         self.reference_gain[rows] = calm_sea_gains(tx.double(), rx.double(), self.optics).to(dtype)
@@ -257,9 +260,15 @@ class WaterAirEnv(EnvBase):
         self._record(path, rows)
         self.history[rows] = 0.0
 
-    def _uniform(self, bounds: tuple[float, float], count: int) -> torch.Tensor:
-        low, high = bounds
-        return low + (high - low) * torch.rand(count, generator=self._generator, dtype=torch.float64)
+    def _per_link(self, bounds, values, default, rows: torch.Tensor) -> torch.Tensor | None:
+        """float64 ``[n]`` values for ``rows``: drawn from ``bounds``, cycled from ``values``, or ``default``."""
+        count = rows.numel()
+        if bounds is not None:
+            low, high = bounds
+            return low + (high - low) * torch.rand(count, generator=self._generator, dtype=torch.float64)
+        if values is not None:
+            return torch.tensor(values, dtype=torch.float64)[rows.cpu() % len(values)]
+        return None if default is None else torch.full((count,), default, dtype=torch.float64)
 
     def _apply_action(self, action: torch.Tensor) -> None:
         if self.config.action_mode == "absolute":

@@ -64,6 +64,12 @@ class EnvConfig:
     # domain randomisation: per-link values drawn uniformly at every reset, or None
     wind_range: tuple[float, float] | None = None  # m/s
     offset_range: tuple[float, float] | None = None  # offset ratio
+    # per-link scenario values (evaluation grids): link i uses values[i % len(values)], or None.
+    # Given together, both lists have one entry per scenario point (link i is point i % len).
+    wind_values: tuple[float, ...] | None = None  # m/s
+    offset_values: tuple[float, ...] | None = None  # offset ratio
+    # the batch is `replicas` copies of num_envs / replicas links with identical seas (paired comparisons)
+    replicas: int = 1
     # torch.compile the surface kernel (one-off ~30-60 s, ~5x faster CPU steps). Not "compile":
     # TorchRL's EnvBase metaclass takes that keyword for itself.
     compile_kernel: bool = False
@@ -83,16 +89,41 @@ class EnvConfig:
         for extra in self.observation_extras:
             check_choice("env.observation_extras", extra, OBSERVATION_EXTRAS)
         check_int("env.history_length", self.history_length, 1, 1000)
+        check_int("env.replicas", self.replicas, 1, self.num_envs)
+        if self.num_envs % self.replicas:
+            raise ValueError(
+                f"env.replicas = {self.replicas} is not allowed; it must divide env.num_envs = {self.num_envs}"
+            )
         check_choice("env.solver", self.solver, METHODS)
         if self.wind_range is not None:
             object.__setattr__(self, "wind_range", _check_pair("env.wind_range", self.wind_range, 0.0, 60.0, "m/s"))
         if self.offset_range is not None:
             object.__setattr__(self, "offset_range", _check_pair("env.offset_range", self.offset_range, 0.0, 10.0, ""))
+        self._check_values("wind", 60.0, "m/s")
+        self._check_values("offset", 10.0, "")
+        if self.wind_values and self.offset_values and len(self.wind_values) != len(self.offset_values):
+            raise ValueError(
+                f"env.wind_values has {len(self.wind_values)} entries and env.offset_values "
+                f"{len(self.offset_values)}; given together they must have one entry per scenario point"
+            )
         for build in (self.sea, self.link, self.transceiver):
             try:
                 build()
             except ValueError as error:
                 raise ValueError(f"env.{error}") from None
+
+    def _check_values(self, name: str, high: float, unit: str) -> None:
+        key, values = f"{name}_values", getattr(self, f"{name}_values")
+        if values is None:
+            return
+        values = tuple(values)
+        if not values:
+            raise ValueError(f"env.{key} = [] must list at least one value (or be null)")
+        if getattr(self, f"{name}_range") is not None:
+            raise ValueError(f"env.{key} and env.{name}_range are both set; use one of them")
+        for index, value in enumerate(values):
+            check_range(f"env.{key}[{index}]", value, 0.0, high, low_open=(name == "wind"), unit=unit)
+        object.__setattr__(self, key, tuple(float(v) for v in values))
 
     @classmethod
     def from_mapping(cls, values: Mapping) -> EnvConfig:
@@ -139,6 +170,12 @@ class EnvConfig:
     def max_tilt(self) -> float:
         """sin(max_tilt): the largest norm of a tilt vector."""
         return math.sin(math.radians(self.max_tilt_deg))
+
+    @property
+    def observation_size(self) -> int:
+        """8 (SPEC §5) plus the opt-in extras: 2 for ``spot``, ``history_length`` for ``history``."""
+        extras = self.observation_extras
+        return 8 + 2 * ("spot" in extras) + self.history_length * ("history" in extras)
 
     @property
     def episode_seconds(self) -> float:
