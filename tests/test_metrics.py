@@ -1,0 +1,85 @@
+"""SPEC §7 metrics on synthetic gain arrays whose answers are known in closed form."""
+
+import math
+
+import pytest
+import torch
+
+from waterair.metrics import (
+    METRICS,
+    confidence_interval,
+    outage_probability,
+    ratio_to_upper_bound,
+    scenario_metrics,
+    sigma2_diff,
+)
+
+
+def test_sigma2_diff_of_a_known_difference():
+    # G_UB − G alternates between 1 and 3 (mean 2): the population variance is exactly 1.
+    upper = torch.full((4, 6), 5.0)
+    gain = upper - torch.tensor([1.0, 3.0]).repeat(4, 3)
+    assert sigma2_diff(gain, upper) == pytest.approx(1.0, abs=1e-12)
+    # A constant shortfall has no variance, however large it is.
+    assert sigma2_diff(upper - 2.5, upper) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_outage_counts_steps_below_a_tenth_of_the_reference():
+    gain = torch.tensor([[0.05, 0.2, 0.09, 1.0], [0.1, 0.11, 0.0, 0.5]])
+    # references 1 and 2: thresholds 0.1 and 0.2; outages 0.05, 0.09 | 0.1, 0.11, 0.0
+    reference = torch.tensor([[1.0], [2.0]])
+    assert outage_probability(gain, reference) == pytest.approx(5 / 8)
+
+
+def test_ratio_to_upper_bound_is_a_ratio_of_means_not_a_mean_of_ratios():
+    gain = torch.tensor([[1.0, 0.0]])
+    upper = torch.tensor([[1.0, 3.0]])
+    assert ratio_to_upper_bound(gain, upper) == pytest.approx(0.25)
+
+
+def test_scenario_metrics_point_values_match_the_plain_definitions():
+    generator = torch.Generator().manual_seed(1)
+    upper = 1.0 + torch.rand(8, 50, generator=generator, dtype=torch.float64)
+    gain = upper * torch.rand(8, 50, generator=generator, dtype=torch.float64)
+    reference = 1.0 + torch.rand(8, generator=generator, dtype=torch.float64)
+    valid = torch.rand(8, 50, generator=generator) > 0.2
+    m = scenario_metrics(gain, upper, reference, valid)
+    assert set(METRICS) | {f"{k}_lo" for k in METRICS} | {f"{k}_hi" for k in METRICS} == set(m)
+    assert m["mean_gain"] == pytest.approx(gain.mean().item(), rel=1e-12)
+    assert m["ratio_to_ub"] == pytest.approx((gain.mean() / upper.mean()).item(), rel=1e-12)
+    assert m["sigma2_diff"] == pytest.approx((upper - gain).var(unbiased=False).item(), rel=1e-9)
+    assert m["outage"] == pytest.approx((gain < 0.1 * reference[:, None]).double().mean().item())
+    assert m["valid_share"] == pytest.approx(valid.double().mean().item())
+    assert m["mean_intensity"] == pytest.approx((gain / reference[:, None]).mean().item(), rel=1e-12)
+    for name in METRICS:
+        assert m[f"{name}_lo"] <= m[name] <= m[f"{name}_hi"], name
+
+
+def test_upper_bound_against_itself_has_ratio_one_and_no_spread():
+    upper = 1.0 + torch.rand(16, 40, dtype=torch.float64)
+    m = scenario_metrics(upper, upper, torch.ones(16), torch.ones(16, 40, dtype=torch.bool))
+    assert m["ratio_to_ub"] == 1.0 and m["sigma2_diff"] == 0.0
+    assert m["ratio_to_ub_lo"] == m["ratio_to_ub_hi"] == 1.0
+    assert m["sigma2_diff_hi"] == 0.0
+
+
+def test_bootstrap_interval_matches_the_normal_interval_of_independent_realisations():
+    # Each realisation is a constant level drawn from N(1, 0.2²): the mean's 95 % interval is
+    # ±1.96·0.2/√R around the sample mean; the bootstrap must agree to within sampling error.
+    count = 400
+    levels = 1.0 + 0.2 * torch.randn(count, 1, generator=torch.Generator().manual_seed(3), dtype=torch.float64)
+    gain = levels.expand(count, 30)
+    m = scenario_metrics(gain, gain + 1.0, torch.ones(count), torch.ones(count, 30, dtype=torch.bool))
+    half_width = (m["mean_gain_hi"] - m["mean_gain_lo"]) / 2
+    expected = 1.959964 * levels.std().item() / math.sqrt(count)
+    assert half_width == pytest.approx(expected, rel=0.1)
+    assert half_width == pytest.approx(confidence_interval(gain), rel=0.1)
+    # Realisations that are all the same leave no uncertainty.
+    flat = scenario_metrics(torch.ones(5, 7), torch.full((5, 7), 2.0), torch.ones(5), torch.ones(5, 7))
+    assert flat["mean_gain_lo"] == flat["mean_gain_hi"] == 1.0
+
+
+def test_no_valid_path_anywhere_gives_ratio_zero_not_nan():
+    zeros = torch.zeros(3, 4)
+    m = scenario_metrics(zeros, zeros, torch.ones(3), torch.zeros(3, 4, dtype=torch.bool))
+    assert m["ratio_to_ub"] == 0.0 and m["valid_share"] == 0.0 and m["outage"] == 1.0
