@@ -4,8 +4,9 @@ VENV   := .venv
 PYTHON := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= outputs
+RUN    ?= $(OUT)/train/$(shell date +%Y-%m-%d/%H-%M-%S)
 
-.PHONY: install train test figures bench clean
+.PHONY: install train evaluate test figures bench clean
 
 install: $(STAMP)
 
@@ -15,11 +16,17 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m pip install --quiet --disable-pip-version-check -e '.[dev,gym]'
 	touch $(STAMP)
 
+# Train into RUN, then evaluate that policy against the baselines into RUN/evaluation.
 train: $(STAMP)
-	$(PYTHON) train.py $(ARGS)
+	$(PYTHON) train.py hydra.run.dir=$(RUN) $(ARGS)
+	$(PYTHON) evaluate.py run=$(RUN) hydra.run.dir=$(RUN)/evaluation
+
+# Evaluate the shipped default policy (or ARGS="run=outputs/train/DATE/TIME").
+evaluate: $(STAMP)
+	$(PYTHON) evaluate.py $(ARGS)
 
 test: $(STAMP)
-	$(VENV)/bin/ruff check waterair tests train.py
+	$(VENV)/bin/ruff check waterair tests train.py evaluate.py
 	$(PYTHON) -m pytest -q
 
 figures: $(STAMP)

@@ -189,16 +189,22 @@ def make_env(cfg: DictConfig, **overrides) -> TransformedEnv:
 
 def make_actor(cfg: DictConfig, env, device) -> TensorDictModule:
     """Deterministic actor: MLP(observation) → tanh → action in [-1, 1]."""
+    sizes = env.observation_spec["observation"].shape[-1], env.action_spec.shape[-1]
+    return actor_module(cfg.actor, *sizes).to(device)
+
+
+def actor_module(actor_cfg, observation_size: int, action_size: int) -> TensorDictModule:
+    """The actor network of an ``actor`` config group (``hidden``, ``activation``), on the CPU."""
     net = nn.Sequential(
         MLP(
-            in_features=env.observation_spec["observation"].shape[-1],
-            out_features=env.action_spec.shape[-1],
-            num_cells=list(cfg.actor.hidden),
-            activation_class=ACTIVATIONS[cfg.actor.activation],
+            in_features=observation_size,
+            out_features=action_size,
+            num_cells=list(actor_cfg.hidden),
+            activation_class=ACTIVATIONS[actor_cfg.activation],
         ),
         nn.Tanh(),
     )
-    return TensorDictModule(net, in_keys=["observation"], out_keys=["action"]).to(device)
+    return TensorDictModule(net, in_keys=["observation"], out_keys=["action"])
 
 
 def make_critic(cfg: DictConfig, env, device) -> ValueOperator:

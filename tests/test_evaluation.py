@@ -1,0 +1,264 @@
+"""evaluate.py and waterair.evaluation: schema, figures, same seas, the upper bound, checkpoint errors (issue 5)."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+from waterair.evaluation import (
+    ROW_KEYS,
+    SHIPPED_POLICY,
+    CheckpointError,
+    evaluate,
+    export_policy,
+    latest_run,
+    load_policy,
+    write_outputs,
+)
+from waterair.metrics import METRICS
+from waterair.training import actor_module, train
+
+ROOT = Path(__file__).resolve().parents[1]
+TRAIN_TINY = [
+    "env.num_envs=8",
+    "env.n_freq=16",
+    "env.n_dir=8",
+    "env.max_steps=50",
+    "total_frames=800",
+    "collector.frames_per_batch=400",
+    "checkpoint.every_frames=800",
+    "eval.realisations=2",
+    "eval.steps=10",
+    "logger.progress_bar=false",
+    "buffer.capacity=2000",
+    "actor.hidden=[32,32]",
+    "critic.hidden=[32,32]",
+]
+EVAL_TINY = [
+    "env.n_freq=16",
+    "env.n_dir=8",
+    "env.compile_kernel=false",
+    "bootstrap.resamples=200",
+    "scenarios.S1.realisations=3",
+    "scenarios.S1.steps=12",
+    "scenarios.S2.offset_ratios=[0.0,0.2]",
+    "scenarios.S2.realisations=2",
+    "scenarios.S2.steps=8",
+    "scenarios.S3.winds=[6.0,12.0]",
+    "scenarios.S3.realisations=2",
+    "scenarios.S3.steps=8",
+]
+FIGURES = (
+    "gain_vs_time",
+    "gain_vs_offset",
+    "sigma_diff_vs_offset",
+    "gain_vs_wind",
+    "jonswap_spectrum",
+    "jonswap_directional",
+    "wave_surface",
+)
+
+
+def eval_cfg(*overrides):
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        return compose(config_name="evaluate", overrides=[*EVAL_TINY, *overrides])
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    """A run directory trained for 800 frames with a 32×32 actor."""
+    run_dir = tmp_path_factory.mktemp("run")
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        cfg = compose(config_name="config", overrides=TRAIN_TINY)
+    train(cfg, run_dir)
+    return run_dir
+
+
+def write_policy(path: Path, observation_size: int, extras=(), with_config=True) -> Path:
+    """A policy file with a random 16×16 actor for ``observation_size`` inputs (and a config beside it)."""
+    actor_cfg = OmegaConf.create({"hidden": [16, 16], "activation": "relu"})
+    torch.manual_seed(0)
+    state = {"actor": actor_module(actor_cfg, observation_size, 4).state_dict(), "observation_size": observation_size}
+    torch.save(state, path)
+    if with_config:
+        env = {"observation_extras": list(extras), "max_steps": 500, "wind": 12.0}
+        OmegaConf.save(OmegaConf.create({"agent": {"name": "ddpg"}, "actor": actor_cfg, "env": env}),
+                       path.with_suffix(".yaml"))  # fmt: skip
+    return path
+
+
+@pytest.mark.slow
+def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_run, tmp_path):
+    cfg = eval_cfg(f"run={tiny_run}")
+    result = evaluate(cfg, progress=lambda _: None)
+    written = write_outputs(result, tmp_path, cfg)
+    assert {p.name for p in written} >= {"metrics.json", "metrics.csv", "report.md"}
+
+    data = json.loads((tmp_path / "metrics.json").read_text())
+    assert data["schema_version"] == 1
+    labels = [p["label"] for p in data["policies"]]
+    assert labels[0] == "upper_bound" and labels[2:] == ["tracking", "flat_snell", "straight_facing", "no_alignment"]
+    assert data["policies"][1]["kind"] == "learned" and data["policies"][1]["frames"] == 800
+    points = {"S1": 1, "S2": 2, "S3": 2}
+    assert {s["name"]: len(s["points"]) for s in data["scenarios"]} == points
+    assert len(data["rows"]) == sum(points.values()) * len(labels)
+    for row in data["rows"]:
+        assert set(row) == set(ROW_KEYS)
+        for name in METRICS:
+            assert row[f"{name}_lo"] <= row[name] + 1e-12 and row[name] <= row[f"{name}_hi"] + 1e-12, (row, name)
+    csv_lines = (tmp_path / "metrics.csv").read_text().splitlines()
+    assert csv_lines[0].split(",") == list(ROW_KEYS) and len(csv_lines) == 1 + len(data["rows"])
+
+    report = (tmp_path / "report.md").read_text()
+    for name in FIGURES:
+        png = tmp_path / f"{name}.png"
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000, name
+        assert f"]({name}.png)" in report
+    assert labels[1] in report
+
+
+@pytest.mark.slow
+def test_every_policy_sees_the_same_seas_and_stays_under_the_upper_bound(tiny_run, tmp_path):
+    # A second learned policy with the spot extra runs in its own environment (another interface):
+    # its seas must still be the very same, because every group is seeded with the scenario's seed.
+    spot = write_policy(tmp_path / "spot.pt", observation_size=10, extras=("spot",))
+    result = evaluate(eval_cfg(f"run={tiny_run}", f"checkpoint={spot}"), progress=lambda _: None)
+    kinds = [p["kind"] for p in result.policies]
+    assert kinds == ["bound", "learned", "learned", "baseline", "baseline", "baseline", "baseline"]
+    for scenario, traces in result.traces.items():
+        reference = traces["upper_bound"]["gain_upper_bound"]
+        for label, trace in traces.items():
+            assert torch.equal(trace["gain_upper_bound"], reference), (scenario, label)
+            assert (trace["gain"] <= trace["gain_upper_bound"] * (1 + 1e-5) + 1e-12).all(), (scenario, label)
+        # different policies did act differently on those seas
+        assert not torch.equal(traces["straight_facing"]["gain"], traces["no_alignment"]["gain"])
+    for row in result.rows:
+        if row["policy"] == "upper_bound":
+            assert row["ratio_to_ub"] == 1.0 and row["sigma2_diff"] == 0.0
+        else:
+            assert row["ratio_to_ub"] <= 1.0 + 1e-6
+
+
+def test_missing_and_corrupt_checkpoints_give_one_line_naming_the_file(tmp_path):
+    missing = tmp_path / "nope.pt"
+    with pytest.raises(CheckpointError) as info:
+        load_policy(missing)
+    assert str(info.value) == f"checkpoint {missing} does not exist"
+
+    corrupt = tmp_path / "corrupt.pt"
+    corrupt.write_bytes(b"this is not a torch file" * 10)
+    with pytest.raises(CheckpointError) as info:
+        load_policy(corrupt)
+    assert str(corrupt) in str(info.value) and "not a readable torch checkpoint" in str(info.value)
+    assert "\n" not in str(info.value)
+
+    foreign = tmp_path / "foreign.pt"
+    torch.save({"weights": torch.zeros(3)}, foreign)
+    with pytest.raises(CheckpointError, match="holds no actor weights"):
+        load_policy(foreign)
+
+
+def test_incompatible_observation_size_names_the_file_and_both_sizes(tmp_path):
+    # Trained with 10 observations (spot extra) but no config beside it: the evaluation env gives 8.
+    policy = write_policy(tmp_path / "spot_policy.pt", observation_size=10, with_config=False)
+    with pytest.raises(CheckpointError) as info:
+        evaluate(eval_cfg(f"checkpoint={policy}"), progress=lambda _: None)
+    message = str(info.value)
+    assert str(policy) in message and "size 10" in message and "gives 8" in message and "\n" not in message
+
+
+def test_weights_that_do_not_fit_the_configured_network_are_a_clear_error(tmp_path):
+    policy = write_policy(tmp_path / "p.pt", observation_size=8, with_config=False)  # 16×16, config says 256×256
+    with pytest.raises(CheckpointError, match=r"do not fit an actor with actor.hidden = \[256, 256\]"):
+        evaluate(eval_cfg(f"checkpoint={policy}"), progress=lambda _: None)
+
+
+@pytest.mark.parametrize(
+    "override,key",
+    [
+        ("scenarios.S2.offset_ratios=[0.0,-0.1]", "scenarios.S2.offset_ratios[1]"),
+        ("scenarios.S3.winds=[0.0]", "scenarios.S3.winds[0]"),
+        ("scenarios.S1.steps=600", "scenarios.S1.steps"),
+        ("scenarios.S1.realisations=0", "scenarios.S1.realisations"),
+        ("baselines=[oracle]", "baselines"),
+    ],
+)
+def test_invalid_evaluation_config_exits_before_any_rollout_with_one_line(override, key, tmp_path):
+    policy = write_policy(tmp_path / "policy.pt", observation_size=8)
+    process = subprocess.run(
+        [sys.executable, "evaluate.py", *EVAL_TINY, f"checkpoint={policy}", override, f"hydra.run.dir={tmp_path}"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert process.returncode != 0
+    lines = process.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {key} = "), process.stderr
+    assert not (tmp_path / "metrics.json").exists()
+
+
+def test_cli_missing_checkpoint_is_one_line(tmp_path):
+    missing = tmp_path / "missing.pt"
+    process = subprocess.run(
+        [sys.executable, "evaluate.py", f"checkpoint={missing}", f"hydra.run.dir={tmp_path}"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert process.returncode != 0
+    assert process.stderr.strip() == f"error: checkpoint {missing} does not exist"
+
+
+@pytest.mark.slow
+def test_exported_policy_acts_like_the_run_it_came_from(tiny_run, tmp_path):
+    exported = export_policy(tiny_run, tmp_path / "policy")
+    assert (tmp_path / "policy.yaml").exists() and (tmp_path / "policy_metrics.json").exists()
+    assert exported.stat().st_size < (tiny_run / "checkpoints" / "last.pt").stat().st_size / 2
+    run, export = load_policy(tiny_run / "checkpoints" / "last.pt"), load_policy(exported)
+    observation = torch.randn(5, 8)
+    actors = [p.actor(None, 8, torch.device("cpu")) for p in (run, export)]
+    outputs = [a.module(observation) for a in actors]
+    torch.testing.assert_close(outputs[0], outputs[1], rtol=0, atol=0)
+    assert export.frames == 800 and export.config.actor.hidden == [32, 32]
+
+
+def test_latest_run_is_the_newest_checkpoint(tmp_path):
+    for name, stamp in (("2026-01-01/10-00-00", 100), ("2026-01-02/09-00-00", 300), ("2026-01-03/08-00-00", 200)):
+        checkpoint = tmp_path / "outputs" / "train" / name / "checkpoints" / "last.pt"
+        checkpoint.parent.mkdir(parents=True)
+        checkpoint.write_bytes(b"x")
+        import os
+
+        os.utime(checkpoint, (stamp, stamp))
+    assert latest_run(tmp_path) == tmp_path / "outputs" / "train" / "2026-01-02" / "09-00-00"
+    with pytest.raises(CheckpointError, match="no run with checkpoints/last.pt"):
+        latest_run(tmp_path / "empty")
+
+
+def test_the_shipped_policy_is_a_trained_default_policy():
+    policy = load_policy(SHIPPED_POLICY)
+    assert policy.observation_size == 8 and policy.config is not None
+    assert policy.label == "ddpg (shipped)"
+    # trained with the default config: the same keys and values as conf/ composes today
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        default = compose(config_name="config")
+    # It was trained before frames_per_batch went from 800 to 400 (so it collected 250,400 frames);
+    # that only changes how often the collector hands over frames, not the updates per frame.
+    allowed = {"device", "seed", "frames_per_batch"}
+    for group in ("env", "reward", "agent", "actor", "critic", "noise", "collector", "buffer"):
+        shipped = OmegaConf.to_container(policy.config[group], resolve=True)
+        current = OmegaConf.to_container(default[group], resolve=True)
+        differing = {k for k in current if k in shipped and shipped[k] != current[k]} - allowed
+        assert not differing, (group, differing)
+    assert policy.config.total_frames == default.total_frames
+    per_batch = policy.config.collector.frames_per_batch
+    assert policy.frames == -(-default.total_frames // per_batch) * per_batch
+    metrics = json.loads(SHIPPED_POLICY.with_name("default_policy_metrics.json").read_text())
+    assert metrics["agent/ratio_to_ub"] > metrics["straight_facing/ratio_to_ub"]

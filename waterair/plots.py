@@ -1,0 +1,146 @@
+"""Evaluation figures (paper Figs. "gain over time", "average gain", "σ²_diff", and the wind sweep).
+
+Each function takes an :class:`waterair.evaluation.Evaluation` and writes one PNG; a figure whose
+scenario was not evaluated is skipped. Colours and markers are fixed per policy kind so that the
+figures of one report read together.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+BASELINE_STYLES = {
+    "tracking": ("tab:purple", "v"),
+    "flat_snell": ("tab:green", "s"),
+    "straight_facing": ("tab:orange", "^"),
+    "no_alignment": ("tab:gray", "x"),
+}
+LEARNED_COLOURS = ("tab:blue", "tab:red", "tab:cyan", "tab:olive", "tab:pink", "tab:brown")
+
+
+def evaluation_figures(result, out: Path) -> list[Path]:
+    """Every evaluation figure of ``result`` whose scenario exists, written into ``out``."""
+    names = {s.name for s in result.scenarios}
+    written = []
+    if "S1" in names:
+        written.append(gain_vs_time(result, out / "gain_vs_time.png"))
+    if "S2" in names:
+        written.append(gain_vs_sweep(result, "S2", out / "gain_vs_offset.png"))
+        written.append(sigma_diff_vs_offset(result, out / "sigma_diff_vs_offset.png"))
+    if "S3" in names:
+        written.append(gain_vs_sweep(result, "S3", out / "gain_vs_wind.png"))
+    return written
+
+
+def gain_vs_time(result, path: Path) -> Path:
+    """S1: G(t) of every policy on one sea realisation, and the mean over all realisations."""
+    scenario = _scenario(result, "S1")
+    traces = result.traces["S1"]
+    time = [result.dt * (k + 1) for k in range(scenario.steps)]
+    fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
+    for ax, title, reduce in (
+        (axes[0], "one sea realisation (the first)", lambda g: g[0, 0]),
+        (axes[1], f"mean over {scenario.realisations} realisations", lambda g: g[:, 0].double().mean(0)),
+    ):
+        for policy in result.policies:
+            colour, _, style, width = _style(result, policy)
+            ax.plot(time, reduce(traces[policy["label"]]["gain"]), color=colour, linestyle=style, linewidth=width,
+                    label=policy["label"])  # fmt: skip
+        ax.set_ylabel("channel gain G (m⁻²)")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3)
+    axes[1].set_xlabel("time (s)")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=8, ncol=min(len(labels), 6), loc="lower center")
+    fig.suptitle(scenario.title)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    return _save(fig, path, layout=False)
+
+
+def gain_vs_sweep(result, name: str, path: Path) -> Path:
+    """S2 or S3: mean gain with its interval (top) and the ratio to the upper bound (bottom) per point."""
+    scenario = _scenario(result, name)
+    x = _axis_values(scenario)
+    fig, axes = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    for policy in result.policies:
+        rows = _rows(result, name, policy["label"])
+        colour, marker, style, width = _style(result, policy)
+        mean = [r["mean_gain"] for r in rows]
+        error = [[r["mean_gain"] - r["mean_gain_lo"] for r in rows], [r["mean_gain_hi"] - r["mean_gain"] for r in rows]]
+        axes[0].errorbar(x, mean, yerr=error, color=colour, marker=marker, linestyle=style, linewidth=width,
+                         capsize=3, label=policy["label"])  # fmt: skip
+        axes[1].plot(x, [r["ratio_to_ub"] for r in rows], color=colour, marker=marker, linestyle=style, linewidth=width)
+    axes[0].set_ylabel("mean channel gain (m⁻²)")
+    axes[0].legend(fontsize=8, ncol=2)
+    axes[1].set_ylabel("mean G / mean G_UB")
+    axes[1].set_ylim(0.0, 1.05)
+    axes[1].set_xlabel(_axis_label(scenario))
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"{scenario.title}\n{scenario.realisations} realisations × {scenario.steps * result.dt:g} s, 95 % CI")
+    return _save(fig, path)
+
+
+def sigma_diff_vs_offset(result, path: Path) -> Path:
+    """S2: σ²_diff = var(G_UB − G) per offset, log scale (the upper bound, 0 by definition, is left out)."""
+    scenario = _scenario(result, "S2")
+    x = _axis_values(scenario)
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for policy in result.policies:
+        if policy["kind"] == "bound":
+            continue
+        rows = _rows(result, "S2", policy["label"])
+        colour, marker, style, width = _style(result, policy)
+        values = [r["sigma2_diff"] for r in rows]
+        ax.plot(x, values, color=colour, marker=marker, linestyle=style, linewidth=width, label=policy["label"])
+        ax.fill_between(x, [r["sigma2_diff_lo"] for r in rows], [r["sigma2_diff_hi"] for r in rows], color=colour,
+                        alpha=0.12)  # fmt: skip
+    ax.set_yscale("log")
+    ax.set_xlabel(_axis_label(scenario))
+    ax.set_ylabel("σ²_diff = var(G_UB − G) (m⁻⁴)")
+    ax.set_title(f"{scenario.title}: stability (lower is better, read with the gain)", fontsize=10)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8, ncol=2)
+    return _save(fig, path)
+
+
+def _scenario(result, name: str):
+    return next(s for s in result.scenarios if s.name == name)
+
+
+def _rows(result, name: str, label: str) -> list[dict]:
+    scenario = _scenario(result, name)
+    return [result.row(name, label, wind, offset) for wind, offset in scenario.points]
+
+
+def _axis_values(scenario) -> list[float]:
+    index = 1 if scenario.axis == "offset_ratio" else 0
+    return [point[index] * (100.0 if index == 1 else 1.0) for point in scenario.points]
+
+
+def _axis_label(scenario) -> str:
+    return "horizontal offset (% of the vertical distance)" if scenario.axis == "offset_ratio" else "wind U10 (m/s)"
+
+
+def _style(result, policy: dict) -> tuple[str, str, str, float]:
+    """Colour, marker, line style and width of a policy."""
+    if policy["kind"] == "bound":
+        return "black", "o", "--", 1.6
+    if policy["kind"] == "baseline":
+        colour, marker = BASELINE_STYLES.get(policy["label"], ("tab:brown", "d"))
+        return colour, marker, "-", 1.0
+    learned = [p["label"] for p in result.policies if p["kind"] == "learned"]
+    return LEARNED_COLOURS[learned.index(policy["label"]) % len(LEARNED_COLOURS)], "D", "-", 2.0
+
+
+def _save(fig, path: Path, layout: bool = True) -> Path:
+    if layout:
+        fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
