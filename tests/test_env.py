@@ -5,7 +5,7 @@ import torch
 from torchrl.envs.utils import check_env_specs
 
 from waterair.env import WaterAirEnv, intensity_feature
-from waterair.env_config import EnvConfig
+from waterair.env_config import EnvConfig, resolve_device
 
 SMALL_SEA = {"n_freq": 16, "n_dir": 8}
 
@@ -207,6 +207,13 @@ def test_config_errors_name_key_value_and_range(kwargs, key):
 def test_per_link_values_must_be_consistent(kwargs, match):
     with pytest.raises(ValueError, match=match):
         EnvConfig(**kwargs)
+
+
+def test_cuda_without_a_cuda_device_is_a_clear_error(monkeypatch):
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    assert resolve_device("auto") == torch.device("cpu")
+    with pytest.raises(ValueError, match="device = 'cuda' is not available on this machine"):
+        resolve_device("cuda")
 
 
 def test_unknown_config_key_is_an_error():

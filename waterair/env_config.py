@@ -183,9 +183,11 @@ class EnvConfig:
 
 
 def resolve_device(name: str) -> torch.device:
-    """``auto`` → CUDA when available, else CPU; ``cpu``/``cuda`` as given."""
+    """``auto`` → CUDA when available, else CPU; ``cpu``/``cuda`` as given (``cuda`` must exist)."""
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise ValueError("device = 'cuda' is not available on this machine (no CUDA device); use auto or cpu")
     return torch.device(name)
 
 

@@ -25,7 +25,7 @@ import torch
 from omegaconf import DictConfig, ListConfig, OmegaConf
 from tensordict.nn import TensorDictModuleBase
 
-from waterair._validation import check_int, check_range
+from waterair._validation import check_choice, check_int, check_range
 from waterair.baselines import BASELINES
 from waterair.env import WaterAirEnv
 from waterair.env_config import EnvConfig, resolve_device
@@ -269,6 +269,7 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
     """
     clock = time.perf_counter()
     scenarios = scenarios_from_config(cfg)
+    check_choice("device", cfg.device, ("auto", "cpu", "cuda"))
     device = resolve_device(cfg.device)
     base = EnvConfig.from_mapping({**OmegaConf.to_container(cfg.env, resolve=True), "device": str(device)})
     scenario_env = {key: getattr(base, key) for key in INTERFACE_KEYS}

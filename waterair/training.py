@@ -135,6 +135,7 @@ def validate(cfg: DictConfig) -> None:
     EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
     Reward(**OmegaConf.to_container(cfg.reward, resolve=True))
     check_choice("device", cfg.device, ("auto", "cpu", "cuda"))
+    resolve_device(cfg.device)  # cuda without a CUDA device is an error now, not after the set-up
     check_int("seed", cfg.seed, 0, 2**63 - 1)
     check_int("total_frames", cfg.total_frames, 1)
     check_range("agent.gamma", cfg.agent.gamma, 0.0, 1.0, high_open=True)
