@@ -35,6 +35,7 @@ figures: $(STAMP)
 bench: $(STAMP)
 	$(PYTHON) -m waterair.bench physics --compile --out $(OUT)/bench/physics.json
 	$(PYTHON) -m waterair.bench env --compile --out $(OUT)/bench/env.json
+	$(PYTHON) -m waterair.bench evaluate --compile --out $(OUT)/bench/evaluate.json
 
 clean:
 	rm -rf $(VENV) *.egg-info .pytest_cache .ruff_cache

@@ -144,6 +144,19 @@ def test_every_policy_sees_the_same_seas_and_stays_under_the_upper_bound(tiny_ru
             assert row["ratio_to_ub"] <= 1.0 + 1e-6
 
 
+def test_one_batch_for_all_policies_gives_the_same_numbers_as_one_rollout_each(tmp_path):
+    policy = write_policy(tmp_path / "policy.pt", observation_size=8)
+    results = [
+        evaluate(eval_cfg(f"checkpoint={policy}", f"batch_policies={together}", "scenarios.S3=null"), progress=print)
+        for together in (True, False)
+    ]
+    assert len(results[0].rows) == len(results[1].rows) == (1 + 2) * 6
+    for batched, alone in zip(results[0].rows, results[1].rows, strict=True):
+        assert batched["policy"] == alone["policy"]
+        for name in METRICS:
+            assert batched[name] == pytest.approx(alone[name], rel=1e-5, abs=1e-12), (batched["policy"], name)
+
+
 def test_missing_and_corrupt_checkpoints_give_one_line_naming_the_file(tmp_path):
     missing = tmp_path / "nope.pt"
     with pytest.raises(CheckpointError) as info:

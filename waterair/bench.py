@@ -1,4 +1,4 @@
-"""Benchmarks: ``python -m waterair.bench physics|env [--out FILE.json]``.
+"""Benchmarks: ``python -m waterair.bench physics|env|evaluate [--out FILE.json]``.
 
 Every number in one JSON file comes from one run on one machine, so ratios between them are
 meaningful. Timings are wall-clock medians over ``--repeats`` runs after one warm-up run.
@@ -9,6 +9,8 @@ meaningful. Timings are wall-clock medians over ``--repeats`` runs after one war
 * ``env``: raw ``env.step`` loop and TorchRL ``rollout`` env-steps per second and peak memory per
   batch size, with the floor ratio (step time / (surface evaluations per step × floor)); see
   :mod:`waterair.bench_env`.
+* ``evaluate``: the default evaluation (shipped policy, every baseline, S1-S3), all policies in
+  one batch against one rollout per policy; see :mod:`waterair.bench_eval`.
 """
 
 from __future__ import annotations
@@ -157,7 +159,8 @@ def main(argv: list[str] | None = None) -> int:
     env.add_argument(
         "--centroid-sizes", type=int, nargs="*", default=[1, 16], help="batch sizes for the centroid solver"
     )
-    for p in (physics, env):
+    evaluation = sub.add_parser("evaluate", help="the default evaluate.py work, batched vs one policy at a time")
+    for p in (physics, env, evaluation):
         p.add_argument("--repeats", type=int, default=5, help="timed runs per measurement (median reported)")
         p.add_argument("--device", default="auto", help="cpu, cuda or auto")
         p.add_argument("--dtype", choices=["float32", "float64"], default="float32")
@@ -165,7 +168,12 @@ def main(argv: list[str] | None = None) -> int:
         p.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
     args = parser.parse_args(argv)
     device, dtype = resolve_device(args.device), getattr(torch, args.dtype)
-    if args.suite == "env":
+    if args.suite == "evaluate":
+        from waterair.bench_eval import bench_evaluate, evaluate_table
+
+        record = {"machine": machine(device, dtype), **bench_evaluate(args.device, args.compile)}
+        print(evaluate_table(record))
+    elif args.suite == "env":
         from waterair.bench_env import ENV_HEADER, bench_env
 
         print(f"env benchmark: {device}, {'compiled' if args.compile else 'eager'} surface kernel\n\n{ENV_HEADER}")

@@ -308,7 +308,7 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
     )
     # Scenarios with the same realisations, steps and seed run as one batch over the union of their
     # points; within it, every group of policies sharing an interface runs as replicas of one env.
-    groups = _policy_groups(base, _as_list(cfg.baselines), learned)
+    groups = _policy_groups(base, _as_list(cfg.baselines), learned, together=cfg.get("batch_policies", True))
     for batch in _batches(scenarios):
         points = list(dict.fromkeys(p for s in batch for p in s.points))
         first = batch[0]
@@ -332,8 +332,13 @@ def _batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
     return list(batches.values())
 
 
-def _policy_groups(base: EnvConfig, baselines: list[str], learned) -> list[tuple[EnvConfig, list]]:
-    """(env config, [(label, policy or baseline name)]) per distinct interface; baselines use the scenario's."""
+def _policy_groups(base: EnvConfig, baselines: list[str], learned, together: bool = True) -> list[tuple]:
+    """(env config, [(label, policy or baseline name)]) per distinct interface; baselines use the scenario's.
+
+    ``together=False`` gives every policy its own group (own rollout): slower, less memory.
+    """
+    if not together:
+        return [(base, [(name, name)]) for name in baselines] + [(c, [(p.label, a)]) for p, c, a in learned]
     groups: list[tuple[EnvConfig, list]] = []
     if baselines:
         groups.append((base, [(name, name) for name in baselines]))
