@@ -200,6 +200,7 @@ def test_weights_that_do_not_fit_the_configured_network_are_a_clear_error(tmp_pa
         ("scenarios.S1.realisations=0", "scenarios.S1.realisations"),
         ("baselines=[oracle]", "baselines"),
         ("device=tpu", "device"),
+        ("bootstrap.level=1.0", "bootstrap.level"),
     ],
 )
 def test_invalid_evaluation_config_exits_before_any_rollout_with_one_line(override, key, tmp_path):

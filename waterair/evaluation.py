@@ -109,7 +109,7 @@ class Scenario:
 
 @dataclass
 class Evaluation:
-    """Everything an evaluation measured: one row per (scenario, point, policy), and the S1 traces."""
+    """Everything an evaluation measured: one row per (scenario, point, policy), and the gain traces."""
 
     scenarios: list[Scenario]
     policies: list[dict]  # label, kind, and for learned policies source/frames/trained env
@@ -270,6 +270,9 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
     clock = time.perf_counter()
     scenarios = scenarios_from_config(cfg)
     check_choice("device", cfg.device, ("auto", "cpu", "cuda"))
+    check_range("bootstrap.level", cfg.bootstrap.level, 0.0, 1.0, low_open=True, high_open=True)
+    check_int("bootstrap.resamples", cfg.bootstrap.resamples, 10, 10**6)
+    check_int("bootstrap.seed", cfg.bootstrap.seed, 0, 2**63 - 1)
     device = resolve_device(cfg.device)
     base = EnvConfig.from_mapping({**OmegaConf.to_container(cfg.env, resolve=True), "device": str(device)})
     scenario_env = {key: getattr(base, key) for key in INTERFACE_KEYS}
