@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 import torch
-from hydra import compose, initialize_config_dir
+from conftest import ROOT, compose_config
 from omegaconf import OmegaConf
 
 from waterair.evaluation import (
@@ -23,7 +23,6 @@ from waterair.evaluation import (
 from waterair.metrics import METRICS
 from waterair.training import actor_module, train
 
-ROOT = Path(__file__).resolve().parents[1]
 TRAIN_TINY = [
     "env.num_envs=8",
     "env.n_freq=16",
@@ -65,17 +64,14 @@ FIGURES = (
 
 
 def eval_cfg(*overrides):
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        return compose(config_name="evaluate", overrides=[*EVAL_TINY, *overrides])
+    return compose_config("evaluate", [*EVAL_TINY, *overrides])
 
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     """A run directory trained for 800 frames with a 32×32 actor."""
     run_dir = tmp_path_factory.mktemp("run")
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        cfg = compose(config_name="config", overrides=TRAIN_TINY)
-    train(cfg, run_dir)
+    train(compose_config("config", TRAIN_TINY), run_dir)
     return run_dir
 
 
@@ -262,8 +258,7 @@ def test_the_shipped_policy_is_a_trained_default_policy():
     assert policy.observation_size == 8 and policy.config is not None
     assert policy.label == "ddpg (shipped)"
     # trained with the default config: the same keys and values as conf/ composes today
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        default = compose(config_name="config")
+    default = compose_config("config")
     # It was trained before frames_per_batch went from 800 to 400 (so it collected 250,400 frames);
     # that only changes how often the collector hands over frames, not the updates per frame.
     allowed = {"device", "seed", "frames_per_batch"}

@@ -10,12 +10,11 @@ from pathlib import Path
 
 import pytest
 import torch
-from hydra import compose, initialize_config_dir
+from conftest import ROOT, compose_config
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 from waterair.training import train
 
-ROOT = Path(__file__).resolve().parents[1]
 TINY = [
     "env.num_envs=8",
     "env.n_freq=16",
@@ -44,8 +43,7 @@ SCALARS = {
 
 
 def compose_cfg(*overrides):
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        return compose(config_name="config", overrides=[*TINY, *overrides])
+    return compose_config("config", [*TINY, *overrides])
 
 
 def scalars(run_dir: Path) -> dict:
@@ -153,9 +151,8 @@ def test_run_dir_defaults_to_a_dated_folder_and_resume_continues_in_place(resume
     from hydra.core.hydra_config import HydraConfig  # noqa: F401  (resolver registered by waterair.training)
     from omegaconf import OmegaConf
 
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        overrides = [] if resume is None else [f"resume={resume}"]
-        cfg = compose(config_name="config", overrides=overrides, return_hydra_config=True)
+    overrides = [] if resume is None else [f"resume={resume}"]
+    cfg = compose_config("config", overrides, return_hydra_config=True)
     run_dir = OmegaConf.to_container(cfg.hydra.run, resolve=True)["dir"]
     if resume is None:
         assert run_dir.startswith("outputs/train/20")

@@ -116,9 +116,16 @@ class Evaluation:
     rows: list[dict] = field(default_factory=list)
     traces: dict[str, dict[str, dict[str, torch.Tensor]]] = field(default_factory=dict)
     """scenario → policy → ``gain`` / ``gain_upper_bound`` traces ``[R, P, T]``."""
-    dt: float = 0.05
-    device: str = "cpu"
+    env: EnvConfig = field(default_factory=EnvConfig)  # the scenario physics (sea, geometry, dt, device)
     seconds: float = 0.0
+
+    @property
+    def dt(self) -> float:
+        return self.env.dt
+
+    @property
+    def device(self) -> str:
+        return self.env.device
 
     def row(self, scenario: str, policy: str, wind: float, offset: float) -> dict:
         for row in self.rows:
@@ -306,8 +313,7 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
         policies=[{"label": UPPER_BOUND, "kind": "bound"}]
         + [_describe(policy, base) for policy in policies]
         + [{"label": name, "kind": "baseline"} for name in _as_list(cfg.baselines)],
-        dt=base.dt,
-        device=str(device),
+        env=base,
     )
     # Scenarios with the same realisations, steps and seed run as one batch over the union of their
     # points; within it, every group of policies sharing an interface runs as replicas of one env.
@@ -502,11 +508,8 @@ def write_outputs(result: Evaluation, out: Path, cfg: DictConfig, physics: bool 
     figures = plots.evaluation_figures(result, out)
     if physics:
         from waterair.figures import physics_figures
-        from waterair.sea import SeaState
 
-        env = cfg.env
-        sea = SeaState(wind=float(env.wind), fetch=float(env.fetch), gamma=float(env.gamma))
-        figures += physics_figures(out, sea)
+        figures += physics_figures(out, result.env.sea())
     written += figures
     written.append(_write_report(result, out / "report.md", figures))
     return written
