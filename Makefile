@@ -5,6 +5,7 @@ PYTHON := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= outputs
 RUN    ?= $(OUT)/train/$(shell date +%Y-%m-%d/%H-%M-%S)
+SOURCES := waterair tests train.py evaluate.py
 
 .PHONY: install train evaluate test figures bench clean
 
@@ -25,12 +26,19 @@ train: $(STAMP)
 evaluate: $(STAMP)
 	$(PYTHON) evaluate.py $(ARGS)
 
+# Lint, format check, type check (physics and core), then the tests; the last line says how long it all took.
 test: $(STAMP)
-	$(VENV)/bin/ruff check waterair tests train.py evaluate.py
-	$(PYTHON) -m pytest -q
+	@start=$$(date +%s); \
+	$(VENV)/bin/ruff check $(SOURCES) && \
+	$(VENV)/bin/ruff format --check $(SOURCES) && \
+	$(VENV)/bin/mypy && \
+	$(PYTHON) -m pytest -q; \
+	status=$$?; elapsed=$$(( $$(date +%s) - start )); \
+	echo "make test took $$((elapsed / 60)) min $$((elapsed % 60)) s (exit $$status)"; \
+	exit $$status
 
 figures: $(STAMP)
-	$(PYTHON) -m waterair.figures --out $(OUT)/figures
+	$(PYTHON) -m waterair.evaluation.figures --out $(OUT)/figures
 
 bench: $(STAMP)
 	$(PYTHON) -m waterair.bench physics --compile --out $(OUT)/bench/physics.json

@@ -13,7 +13,8 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
-from waterair.evaluation import evaluate, write_outputs
+from waterair.evaluation.report import write_outputs
+from waterair.evaluation.runner import evaluate
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="evaluate")

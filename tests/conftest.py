@@ -6,7 +6,7 @@ import pytest
 import torch
 from hydra import compose, initialize_config_dir
 
-from waterair.channel import LinkGeometry
+from waterair.physics.channel import LinkGeometry
 
 ROOT = Path(__file__).resolve().parents[1]
 """The repository root (where train.py, evaluate.py and conf/ live)."""

@@ -1,10 +1,10 @@
-"""Baseline policies through the same rollout as an agent (SPEC §6)."""
+"""Baseline policies through the same rollout as an agent (docs/environment.md)."""
 
 import pytest
 import torch
 
-from waterair.baselines import BASELINES, FlatSeaSnell, NoAlignment, StraightFacing
-from waterair.env import WaterAirEnv
+from waterair.envs.baselines import BASELINES, FlatSeaSnell, NoAlignment, StraightFacing
+from waterair.envs.env import WaterAirEnv
 
 
 def test_baselines_point_where_they_say():

@@ -1,4 +1,4 @@
-"""Link geometry, channel gain, upper bound and calm-sea reference (SPEC §1, §4, §6)."""
+"""Link geometry, channel gain, upper bound and calm-sea reference (docs/model.md §0, §4)."""
 
 import math
 
@@ -7,10 +7,10 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from waterair.channel import LinkGeometry, Transceiver, calm_sea_gain, channel_gain, gain_upper_bound, pointing
-from waterair.paths import solve_path
-from waterair.sea import SeaState
-from waterair.surface import WaveSurface
+from waterair.physics.channel import LinkGeometry, Transceiver, calm_sea_gain, channel_gain, gain_upper_bound, pointing
+from waterair.physics.paths import solve_path
+from waterair.physics.sea import SeaState
+from waterair.physics.surface import WaveSurface
 
 
 def test_positions_follow_the_spec():

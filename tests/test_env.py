@@ -1,11 +1,12 @@
-"""The TorchRL environment (SPEC §5): specs, actions, resets, seeding, finiteness."""
+"""The TorchRL environment (docs/environment.md): specs, actions, resets, seeding, finiteness."""
 
 import pytest
 import torch
 from torchrl.envs.utils import check_env_specs
 
-from waterair.env import WaterAirEnv, intensity_feature
-from waterair.env_config import EnvConfig, resolve_device
+from waterair.core.devices import resolve_device
+from waterair.envs.config import EnvConfig
+from waterair.envs.env import WaterAirEnv, intensity_feature
 
 SMALL_SEA = {"n_freq": 16, "n_dir": 8}
 
@@ -219,3 +220,38 @@ def test_cuda_without_a_cuda_device_is_a_clear_error(monkeypatch):
 def test_unknown_config_key_is_an_error():
     with pytest.raises(ValueError, match="env.wnd is not a known key"):
         EnvConfig().replace(wnd=3.0)
+
+
+@pytest.mark.slow
+def test_a_compiled_and_an_eager_env_coexist_with_matching_gain_traces():
+    """The compiled kernel belongs to its env: an eager env built after it stays eager and agrees with it."""
+    counters = torch._dynamo.utils.counters["stats"]
+    compiled = small_env(num_envs=8, compile_kernel=True)
+    traced_before = counters["calls_captured"]
+    eager = small_env(num_envs=8)
+    actions = 0.3 * torch.randn(40, 8, 4, generator=torch.Generator().manual_seed(2))
+    traces = {}
+    for name, env in (("compiled", compiled), ("eager", eager)):
+        env.set_seed(7)
+        td, gains = env.reset(), []
+        for action in actions:
+            td = env.step(td.set("action", action))["next"]
+            gains.append(td["gain"])
+        traces[name] = torch.stack(gains)
+        if name == "compiled":
+            traced_before = counters["calls_captured"]
+    assert counters["calls_captured"] == traced_before  # the eager env's 40 steps traced nothing
+    assert traces["compiled"].abs().max() > 0
+    torch.testing.assert_close(traces["compiled"], traces["eager"], rtol=1e-4, atol=1e-9)
+
+
+def test_observation_layout_names_every_part_in_order():
+    config = EnvConfig(observation_extras=("history", "spot"), history_length=3)
+    layout = config.observation_layout
+    assert list(layout) == ["tx_pointing", "rx_pointing", "intensity", "time", "spot", "history"]
+    assert [(part.start, part.stop) for part in layout.values()] == [(0, 3), (3, 6), (6, 7), (7, 8), (8, 10), (10, 13)]
+    assert config.observation_size == 13
+    env = small_env(num_envs=3, observation_extras=("spot",))
+    observation = env.reset()["observation"]
+    torch.testing.assert_close(env.observation_part(observation, "rx_pointing"), observation[:, 3:6])
+    assert (env.observation_part(observation, "rx_pointing")[:, 2] == -1).all()  # straight down at reset

@@ -1,4 +1,4 @@
-"""evaluate.py and waterair.evaluation: schema, figures, same seas, the upper bound, checkpoint errors (issue 5)."""
+"""evaluate.py and waterair.evaluation: schema, figures, same seas, the upper bound, checkpoint errors."""
 
 import json
 import subprocess
@@ -10,18 +10,14 @@ import torch
 from conftest import ROOT, compose_config
 from omegaconf import OmegaConf
 
-from waterair.evaluation import (
-    ROW_KEYS,
-    SHIPPED_POLICY,
-    CheckpointError,
-    evaluate,
-    export_policy,
-    latest_run,
-    load_policy,
-    write_outputs,
-)
-from waterair.metrics import METRICS
-from waterair.training import actor_module, train
+from waterair.agents.checkpoint import CheckpointError, policy_state, save_policy
+from waterair.agents.networks import make_actor
+from waterair.evaluation.metrics import METRICS
+from waterair.evaluation.policies import SHIPPED_POLICY, latest_run, load_policy
+from waterair.evaluation.report import ROW_KEYS, write_outputs
+from waterair.evaluation.runner import evaluate
+from waterair.training import train
+from waterair.training.export import export_policy
 
 TRAIN_TINY = [
     "env.num_envs=8",
@@ -79,8 +75,7 @@ def write_policy(path: Path, observation_size: int, extras=(), with_config=True)
     """A policy file with a random 16×16 actor for ``observation_size`` inputs (and a config beside it)."""
     actor_cfg = OmegaConf.create({"hidden": [16, 16], "activation": "relu"})
     torch.manual_seed(0)
-    state = {"actor": actor_module(actor_cfg, observation_size, 4).state_dict(), "observation_size": observation_size}
-    torch.save(state, path)
+    save_policy(path, policy_state(make_actor(observation_size, 4, [16, 16], "relu"), observation_size, None))
     if with_config:
         env = {"observation_extras": list(extras), "max_steps": 500, "wind": 12.0}
         OmegaConf.save(OmegaConf.create({"agent": {"name": "ddpg"}, "actor": actor_cfg, "env": env}),
@@ -163,13 +158,25 @@ def test_missing_and_corrupt_checkpoints_give_one_line_naming_the_file(tmp_path)
     corrupt.write_bytes(b"this is not a torch file" * 10)
     with pytest.raises(CheckpointError) as info:
         load_policy(corrupt)
-    assert str(corrupt) in str(info.value) and "not a readable torch checkpoint" in str(info.value)
+    assert str(info.value).startswith(f"checkpoint {corrupt} is not a torch file (")
     assert "\n" not in str(info.value)
 
     foreign = tmp_path / "foreign.pt"
     torch.save({"weights": torch.zeros(3)}, foreign)
-    with pytest.raises(CheckpointError, match="holds no actor weights"):
+    with pytest.raises(CheckpointError, match="is a torch file but not a waterair policy"):
         load_policy(foreign)
+
+    truncated = tmp_path / "truncated.pt"
+    whole = write_policy(tmp_path / "whole.pt", observation_size=8, with_config=False).read_bytes()
+    truncated.write_bytes(whole[: len(whole) // 2])
+    with pytest.raises(CheckpointError) as info:
+        load_policy(truncated)
+    assert str(info.value) == f"checkpoint {truncated} is truncated or damaged ({len(whole) // 2} bytes)"
+
+    newer = tmp_path / "newer.pt"
+    torch.save({**torch.load(tmp_path / "whole.pt", weights_only=True), "format": "waterair-policy/9"}, newer)
+    with pytest.raises(CheckpointError, match=r"format 'waterair-policy/9'; this waterair reads 'waterair-policy/1'"):
+        load_policy(newer)
 
 
 def test_incompatible_observation_size_names_the_file_and_both_sizes(tmp_path):
@@ -183,8 +190,12 @@ def test_incompatible_observation_size_names_the_file_and_both_sizes(tmp_path):
 
 def test_weights_that_do_not_fit_the_configured_network_are_a_clear_error(tmp_path):
     policy = write_policy(tmp_path / "p.pt", observation_size=8, with_config=False)  # 16×16, config says 256×256
-    with pytest.raises(CheckpointError, match=r"do not fit an actor with actor.hidden = \[256, 256\]"):
+    with pytest.raises(CheckpointError) as info:
         evaluate(eval_cfg(f"checkpoint={policy}"), progress=lambda _: None)
+    assert str(info.value) == (
+        f"checkpoint {policy}: its actor has layers [16x8, 16x16, 4x16], but actor.hidden = [256, 256] "
+        "builds [256x8, 256x256, 4x256]"
+    )
 
 
 @pytest.mark.parametrize(
@@ -234,10 +245,10 @@ def test_exported_policy_acts_like_the_run_it_came_from(tiny_run, tmp_path):
     assert exported.stat().st_size < (tiny_run / "checkpoints" / "last.pt").stat().st_size / 2
     run, export = load_policy(tiny_run / "checkpoints" / "last.pt"), load_policy(exported)
     observation = torch.randn(5, 8)
-    actors = [p.actor(None, 8, torch.device("cpu")) for p in (run, export)]
+    actors = [p.actor(None, 8) for p in (run, export)]
     outputs = [a.module(observation) for a in actors]
     torch.testing.assert_close(outputs[0], outputs[1], rtol=0, atol=0)
-    assert export.frames == 800 and export.config.actor.hidden == [32, 32]
+    assert export.file.frames == 800 and export.config.actor.hidden == [32, 32]
 
 
 def test_latest_run_is_the_newest_checkpoint(tmp_path):
@@ -255,7 +266,7 @@ def test_latest_run_is_the_newest_checkpoint(tmp_path):
 
 def test_the_shipped_policy_is_a_trained_default_policy():
     policy = load_policy(SHIPPED_POLICY)
-    assert policy.observation_size == 8 and policy.config is not None
+    assert policy.file.observation_size == 8 and policy.config is not None
     assert policy.label == "ddpg (shipped)"
     # trained with the default config: the same keys and values as conf/ composes today
     default = compose_config("config")
@@ -269,6 +280,6 @@ def test_the_shipped_policy_is_a_trained_default_policy():
         assert not differing, (group, differing)
     assert policy.config.total_frames == default.total_frames
     per_batch = policy.config.collector.frames_per_batch
-    assert policy.frames == -(-default.total_frames // per_batch) * per_batch
+    assert policy.file.frames == -(-default.total_frames // per_batch) * per_batch
     metrics = json.loads(SHIPPED_POLICY.with_name("default_policy_metrics.json").read_text())
     assert metrics["agent/ratio_to_ub"] > metrics["straight_facing/ratio_to_ub"]

@@ -6,7 +6,7 @@ import pytest
 gymnasium = pytest.importorskip("gymnasium", reason="the gym extra is installed by `make test`")
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
-from waterair.gym import WaterAirGymEnv, WaterAirVectorEnv  # noqa: E402
+from waterair.envs.gym import WaterAirGymEnv, WaterAirVectorEnv  # noqa: E402
 
 SMALL = {"n_freq": 16, "n_dir": 8}
 

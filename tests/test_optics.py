@@ -1,4 +1,4 @@
-"""Snell refraction, Fresnel transmittance and the gain terms (SPEC §4)."""
+"""Snell refraction, Fresnel transmittance and the gain terms (docs/model.md §4)."""
 
 import math
 
@@ -7,7 +7,7 @@ import torch
 from hypothesis import given
 from hypothesis import strategies as st
 
-from waterair.optics import (
+from waterair.physics.optics import (
     WATER_ATTENUATION_PER_M,
     angle_between,
     arrival_gain,

@@ -1,4 +1,4 @@
-"""Refracted path solvers (SPEC §3)."""
+"""Refracted path solvers (docs/model.md §3)."""
 
 import math
 
@@ -7,10 +7,10 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from waterair.channel import LinkGeometry
-from waterair.paths import CentroidOptions, NewtonOptions, solve_path
-from waterair.sea import SeaState
-from waterair.surface import WaveSurface
+from waterair.physics.channel import LinkGeometry
+from waterair.physics.paths import CentroidOptions, NewtonOptions, solve_path
+from waterair.physics.sea import SeaState
+from waterair.physics.surface import WaveSurface
 
 N_W, N_A = 1.33, 1.0
 

@@ -1,4 +1,4 @@
-"""Rewards of the normalised intensity (SPEC §5)."""
+"""Rewards of the normalised intensity (docs/model.md §7)."""
 
 import math
 
@@ -7,7 +7,7 @@ import torch
 from hypothesis import given
 from hypothesis import strategies as st
 
-from waterair.rewards import Reward, le_reward_terms
+from waterair.envs.rewards import Reward, le_reward_terms
 
 
 @given(
@@ -44,8 +44,8 @@ def test_default_terms_have_the_same_order_of_magnitude():
 
 def test_linear_and_log_rewards():
     intensity = torch.tensor([0.0, 0.5, 2.0], dtype=torch.float64)
-    torch.testing.assert_close(Reward(kind="linear")(intensity), intensity)
-    log = Reward(kind="log", floor=1e-4)(intensity)
+    torch.testing.assert_close(Reward(name="linear")(intensity), intensity)
+    log = Reward(name="log", floor=1e-4)(intensity)
     torch.testing.assert_close(log, torch.log10(torch.tensor([1e-4, 0.5, 2.0], dtype=torch.float64)))
 
 
@@ -58,7 +58,7 @@ def test_linear_and_log_rewards():
         ({"c": -0.1}, "reward.c"),
         ({"gain": 0.0}, "reward.gain"),
         ({"floor": 0.0}, "reward.floor"),
-        ({"kind": "cubic"}, "reward.kind"),
+        ({"name": "cubic"}, "reward.name"),
     ],
 )
 def test_invalid_coefficients_are_config_errors(kwargs, key):

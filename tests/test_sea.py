@@ -1,11 +1,11 @@
-"""JONSWAP spectrum, spreading and the sea-state discretisation (SPEC §2)."""
+"""JONSWAP spectrum, spreading and the sea-state discretisation (docs/model.md §1, §2)."""
 
 import math
 
 import pytest
 import torch
 
-from waterair.sea import SeaState, jonswap, spreading
+from waterair.physics.sea import SeaState, jonswap, spreading
 
 G = 9.81
 

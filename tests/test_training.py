@@ -1,4 +1,4 @@
-"""train.py and waterair.training: short runs, resume, sweeps, config errors (issue 4)."""
+"""train.py and waterair.training: short runs, resume, sweeps, config errors."""
 
 import json
 import os

@@ -10,36 +10,9 @@ The physics layer can be used on its own (no TorchRL needed)::
     path = solve_path(surface, tx, rx, t=0.0)
 """
 
-from waterair.channel import (
-    ChannelGain,
-    LinkGeometry,
-    Transceiver,
-    calm_sea_gain,
-    channel_gain,
-    gain_upper_bound,
-    pointing,
-)
-from waterair.paths import CentroidOptions, NewtonOptions, PathSolution, flat_sea_point, solve_path
-from waterair.sea import SeaState, jonswap, spreading
-from waterair.surface import SurfaceSample, WaveSurface
+from waterair import physics
+from waterair.physics import *  # noqa: F403  (the physics API, re-exported)
 
-__all__ = [
-    "CentroidOptions",
-    "ChannelGain",
-    "LinkGeometry",
-    "NewtonOptions",
-    "PathSolution",
-    "SeaState",
-    "SurfaceSample",
-    "Transceiver",
-    "WaveSurface",
-    "calm_sea_gain",
-    "channel_gain",
-    "flat_sea_point",
-    "gain_upper_bound",
-    "jonswap",
-    "pointing",
-    "solve_path",
-    "spreading",
-]
+__all__ = physics.__all__
+
 __version__ = "0.1.0"

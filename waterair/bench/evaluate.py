@@ -3,7 +3,6 @@
 Times ``evaluate.py``'s work on the default scenarios (shipped policy, every baseline) twice in one
 process: all policies of a scenario in one batch (``batch_policies=true``, the default) and one
 rollout per policy. The kernel is compiled by a small warm-up first, so neither pays for it.
-The issue-5 target is the whole ``python evaluate.py`` in ≤ 3 minutes on the 2-core CPU.
 """
 
 from __future__ import annotations
@@ -13,7 +12,9 @@ from pathlib import Path
 
 from hydra import compose, initialize_config_dir
 
-CONF = Path(__file__).resolve().parents[1] / "conf"
+from waterair.evaluation.runner import evaluate
+
+CONF = Path(__file__).resolve().parents[2] / "conf"
 WARM_UP = [
     "scenarios.S1.realisations=2",
     "scenarios.S1.steps=5",
@@ -26,8 +27,6 @@ WARM_UP = [
 
 def bench_evaluate(device: str, compile_kernel: bool, overrides: list[str] | None = None) -> dict:
     """Seconds and link-steps per second of the default evaluation, batched and one policy at a time."""
-    from waterair.evaluation import evaluate
-
     base = [f"device={device}", f"env.compile_kernel={str(compile_kernel).lower()}", *(overrides or [])]
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         warm = compose(config_name="evaluate", overrides=[*base, *WARM_UP])

@@ -1,4 +1,4 @@
-"""Alignment metrics of SPEC §7, as pure functions of gain tensors.
+"""Alignment metrics (docs/model.md §8), as pure functions of gain tensors.
 
 All take gains ``[R, T]`` (realisations × steps, 1/m²) and reduce over everything; confidence
 intervals treat each realisation (one sea) as one independent sample, since steps of one sea are
@@ -7,13 +7,10 @@ strongly correlated.
 
 from __future__ import annotations
 
-import math
-
 import torch
-from tensordict import TensorDictBase
 
 OUTAGE_FRACTION = 0.1
-"""A step is an outage when G < 0.1 G_0 (SPEC §7)."""
+"""A step is an outage when G < 0.1 G_0 (docs/model.md §8)."""
 
 
 def mean_gain(gain: torch.Tensor) -> float:
@@ -36,16 +33,6 @@ def outage_probability(gain: torch.Tensor, reference: torch.Tensor) -> float:
     return (gain < OUTAGE_FRACTION * reference).double().mean().item()
 
 
-def confidence_interval(gain: torch.Tensor, level: float = 0.95) -> float:
-    """Half-width of the normal confidence interval of the mean over realisations (rows)."""
-    per_realisation = gain.double().reshape(gain.shape[0], -1).mean(-1)
-    count = per_realisation.numel()
-    if count < 2:
-        return float("nan")
-    z = math.sqrt(2.0) * torch.erfinv(torch.tensor(level, dtype=torch.float64)).item()
-    return z * per_realisation.std(unbiased=True).item() / math.sqrt(count)
-
-
 METRICS = ("mean_gain", "ratio_to_ub", "sigma2_diff", "outage", "valid_share", "mean_intensity")
 """What :func:`scenario_metrics` reports, each with ``_lo`` / ``_hi`` bounds."""
 
@@ -60,7 +47,7 @@ def scenario_metrics(
     resamples: int = 2000,
     seed: int = 0,
 ) -> dict[str, float]:
-    """Every SPEC §7 metric of one scenario point, with bootstrap confidence bounds over realisations.
+    """Every metric (docs/model.md §8) of one scenario point, with bootstrap confidence bounds over realisations.
 
     ``gain``, ``upper`` (G_UB) and ``valid`` are ``[R, T]``; ``reference`` is G_0 per realisation
     ``[R]`` (or a scalar). The point values are the plain definitions over all R·T steps: mean G,
@@ -108,17 +95,3 @@ def _metrics_from_sums(sums: torch.Tensor, steps: int) -> torch.Tensor:
     variance = (d2 / steps - (d / steps) ** 2).clamp(min=0.0)
     ratio = torch.where(u > 0, g / u.clamp(min=1e-300), torch.zeros_like(g))  # no valid path at all: 0
     return torch.stack((g / steps, ratio, variance, outage / steps, valid / steps, intensity / steps), dim=-1)
-
-
-def summarise(rollout: TensorDictBase, reference_gain: torch.Tensor) -> dict[str, float]:
-    """Every metric of a rollout ``[R, T]`` carrying ``("next", "gain")`` etc."""
-    gain, upper = rollout["next", "gain"], rollout["next", "gain_upper_bound"]
-    return {
-        "mean_gain": mean_gain(gain),
-        "mean_gain_ci95": confidence_interval(gain),
-        "ratio_to_ub": ratio_to_upper_bound(gain, upper),
-        "sigma2_diff": sigma2_diff(gain, upper),
-        "outage": outage_probability(gain, reference_gain.reshape(-1, *([1] * (gain.dim() - 1)))),
-        "valid_share": rollout["next", "path_valid"].double().mean().item(),
-        "mean_intensity": rollout["next", "intensity"].double().mean().item(),
-    }

@@ -1,4 +1,4 @@
-"""Rewards as functions of the normalised intensity I = G / G_0 (SPEC §5, paper Sec. IV-B).
+"""Rewards as functions of the normalised intensity I = G / G_0 (docs/model.md §7, paper Sec. IV-B).
 
 * ``le`` (the paper's logarithm-exponential): R(I) = G_r (ln(a I + 1) + log10(b I) + exp(c I)) + B
 * ``linear``: R(I) = I
@@ -11,13 +11,15 @@ increasing in I above the floor (and constant-free of NaN/inf everywhere).
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import torch
 
-from waterair._validation import check_choice, check_range
+from waterair.core.validation import check_choice, check_range
 
-REWARD_KINDS = ("le", "linear", "log")
+REWARD_NAMES = ("le", "linear", "log")
 
 
 @dataclass(frozen=True)
@@ -25,7 +27,7 @@ class Reward:
     """A validated reward of the normalised intensity I (dimensionless).
 
     Attributes:
-        kind: ``le``, ``linear`` or ``log``.
+        name: ``le``, ``linear`` or ``log`` (the ``reward`` group's option).
         a: ln-term coefficient, > 0.
         b: log10-term coefficient, > 0.
         c: exp-term coefficient, ≥ 0 (≤ 10, so that exp(c I) stays finite for I ≤ 10).
@@ -40,7 +42,7 @@ class Reward:
     keeps per-step rewards in about [0, 0.9], a scale that suits a critic with discount 0.2.
     """
 
-    kind: str = "le"
+    name: str = "le"
     a: float = 10.0
     b: float = 100.0
     c: float = 0.7
@@ -49,7 +51,7 @@ class Reward:
     floor: float = 1e-3
 
     def __post_init__(self) -> None:
-        check_choice("reward.kind", self.kind, REWARD_KINDS)
+        check_choice("reward.name", self.name, REWARD_NAMES)
         check_range("reward.a", self.a, 0.0, 1e6, low_open=True)
         check_range("reward.b", self.b, 0.0, 1e12, low_open=True)
         check_range("reward.c", self.c, 0.0, 10.0)
@@ -60,12 +62,21 @@ class Reward:
     def __call__(self, intensity: torch.Tensor) -> torch.Tensor:
         """Reward of intensity I ≥ 0 (any shape); finite for every finite I in [0, 10]."""
         clamped = intensity.clamp(min=self.floor)
-        if self.kind == "linear":
+        if self.name == "linear":
             return intensity
-        if self.kind == "log":
+        if self.name == "log":
             return torch.log10(clamped)
         terms = torch.log1p(self.a * intensity) + torch.log10(self.b * clamped) + torch.exp(self.c * intensity)
         return self.gain * terms + self.bias
+
+    @classmethod
+    def from_mapping(cls, values: Mapping) -> Reward:
+        """Build from a plain mapping (a resolved ``reward`` group); unknown keys are errors."""
+        known = [f.name for f in dataclasses.fields(cls)]
+        unknown = sorted(set(values) - set(known))
+        if unknown:
+            raise ValueError(f"reward.{unknown[0]} is not a known key; allowed: {', '.join(known)}")
+        return cls(**values)
 
     @property
     def minimum(self) -> float:
@@ -82,4 +93,4 @@ def le_reward_terms(intensity: torch.Tensor, reward: Reward) -> tuple[torch.Tens
     )
 
 
-__all__ = ["REWARD_KINDS", "Reward", "le_reward_terms"]
+__all__ = ["REWARD_NAMES", "Reward", "le_reward_terms"]

@@ -1,6 +1,6 @@
 """Optics of the water-air link: Snell refraction, Fresnel transmittance and the four gain terms.
 
-SPEC §4 (paper Sec. II, eqs. (2)-(5)). Angles in radians, distances in metres.
+docs/model.md §4 (paper Sec. II, eqs. (2)-(5)). Angles in radians, distances in metres.
 """
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ import math
 import torch
 
 N_WATER = 1.33
-"""Refractive index of sea water n_w (paper n1), SPEC §1."""
+"""Refractive index of sea water n_w (paper n1), docs/model.md §0."""
 N_AIR = 1.0
-"""Refractive index of air n_a (paper n2), SPEC §1."""
+"""Refractive index of air n_a (paper n2), docs/model.md §0."""
 
 WATER_ATTENUATION_PER_M = {
     "pure_sea": 0.056,
@@ -20,7 +20,7 @@ WATER_ATTENUATION_PER_M = {
     "coastal": 0.398,
     "harbor": 2.17,
 }
-"""Attenuation coefficient c (1/m) at 532 nm for the usual water types (SPEC §4)."""
+"""Attenuation coefficient c (1/m) at 532 nm for the usual water types (docs/model.md §4)."""
 
 
 def critical_angle(n1: float = N_WATER, n2: float = N_AIR) -> float:
@@ -51,7 +51,7 @@ def refract(direction: torch.Tensor, normal: torch.Tensor, n1: float, n2: float)
 
 
 def fresnel_transmittance(theta1: torch.Tensor, n1: float = N_WATER, n2: float = N_AIR) -> torch.Tensor:
-    """Unpolarised Fresnel power transmittance G_ref = 1 − ½(r_s² + r_p²) (SPEC §4, paper eq. (4)).
+    """Unpolarised Fresnel power transmittance G_ref = 1 − ½(r_s² + r_p²) (docs/model.md §4, paper eq. (4)).
 
     Args:
         theta1: incidence angle in the first medium (rad), any shape.
@@ -71,7 +71,7 @@ def fresnel_transmittance(theta1: torch.Tensor, n1: float = N_WATER, n2: float =
 
 
 def departure_gain(alpha_d: torch.Tensor, divergence: float, wavelength: float) -> torch.Tensor:
-    """Gaussian-beam departure gain G_D(α_D) (SPEC §4, paper eq. (2)), dimensionless, G_D(0) = 1.
+    """Gaussian-beam departure gain G_D(α_D) (docs/model.md §4, paper eq. (2)), dimensionless, G_D(0) = 1.
 
     Args:
         alpha_d: angle between the transmitter's pointing and the departing ray (rad).
@@ -83,7 +83,7 @@ def departure_gain(alpha_d: torch.Tensor, divergence: float, wavelength: float) 
 
 
 def path_gain(d_water: torch.Tensor, d_air: torch.Tensor, attenuation: float) -> torch.Tensor:
-    """Path gain G_p = exp(−c d_water) / (d_water + d_air)² (1/m²), SPEC §4, paper eq. (3).
+    """Path gain G_p = exp(−c d_water) / (d_water + d_air)² (1/m²), docs/model.md §4, paper eq. (3).
 
     Args:
         d_water, d_air: ray lengths in water and air (m).
@@ -95,7 +95,7 @@ def path_gain(d_water: torch.Tensor, d_air: torch.Tensor, attenuation: float) ->
 
 
 def arrival_gain(alpha_a: torch.Tensor, half_fov: float, concentrator_index: float = 1.0) -> torch.Tensor:
-    """Receiver gain G_A = (n_c² / sin² ω_A) cos α_A inside the FOV, 0 outside (SPEC §4, eq. (5)).
+    """Receiver gain G_A = (n_c² / sin² ω_A) cos α_A inside the FOV, 0 outside (docs/model.md §4, paper eq. (5)).
 
     Args:
         alpha_a: angle between the receiver boresight and the reversed arriving ray (rad).
@@ -111,3 +111,8 @@ def angle_between(u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
     """Angle (rad) between unit vectors ``[..., 3]``, accurate near 0 and π (atan2 of |u×v|, u·v)."""
     cross = torch.linalg.vector_norm(torch.linalg.cross(u, v, dim=-1), dim=-1)
     return torch.atan2(cross, (u * v).sum(-1))
+
+
+def unit_vector(v: torch.Tensor) -> torch.Tensor:
+    """``v / |v|`` along the last dimension (``[..., 3]``)."""
+    return v / torch.linalg.vector_norm(v, dim=-1, keepdim=True)

@@ -1,4 +1,4 @@
-"""Link geometry and the channel gain of a refracted path (SPEC §1 and §4, paper eq. (1)).
+"""Link geometry and the channel gain of a refracted path (docs/model.md §0 and §4, paper eq. (1)).
 
     G = G_D(α_D) · G_p(d_water, d_air) · G_ref(θ1) · G_A(α_A)
 
@@ -11,10 +11,10 @@ import math
 from dataclasses import dataclass
 
 import torch
-from tensordict import tensorclass
+from tensordict import TensorClass
 
-from waterair._validation import check_choice, check_range
-from waterair.optics import (
+from waterair.core.validation import check_choice, check_range
+from waterair.physics.optics import (
     N_AIR,
     N_WATER,
     WATER_ATTENUATION_PER_M,
@@ -24,12 +24,12 @@ from waterair.optics import (
     fresnel_transmittance,
     path_gain,
 )
-from waterair.paths import PathSolution, flat_sea_point
+from waterair.physics.paths import PathSolution, flat_sea_point
 
 
 @dataclass(frozen=True)
 class LinkGeometry:
-    """Where the transmitter (under water) and the receiver (in the air) are (SPEC §1).
+    """Where the transmitter (under water) and the receiver (in the air) are (docs/model.md §0).
 
     Attributes:
         tx_depth: transmitter depth below mean sea level (m), in (0, 1e4].
@@ -74,7 +74,7 @@ class LinkGeometry:
 
 @dataclass(frozen=True)
 class Transceiver:
-    """Optical parameters of the link (SPEC §4 defaults).
+    """Optical parameters of the link (defaults in docs/model.md §5).
 
     Attributes:
         wavelength: laser wavelength λ (m), in (0, 1e-5].
@@ -112,8 +112,7 @@ class Transceiver:
         return WATER_ATTENUATION_PER_M[self.water] if self.attenuation is None else self.attenuation
 
 
-@tensorclass
-class ChannelGain:
+class ChannelGain(TensorClass):
     """G and its four factors for each batch element (all ``[B]``), plus the pointing errors.
 
     ``gain`` G (1/m²); ``departure`` G_D, ``path`` G_p (1/m²), ``refraction`` G_ref, ``arrival``
@@ -130,7 +129,7 @@ class ChannelGain:
 
 
 def channel_gain(path: PathSolution, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> ChannelGain:
-    """Channel gain of ``path`` for the given pointings (SPEC §4, paper eq. (1)).
+    """Channel gain of ``path`` for the given pointings (docs/model.md §4, paper eq. (1)).
 
     Args:
         path: the refracted path.
@@ -159,13 +158,13 @@ def channel_gain(path: PathSolution, tx_dir: torch.Tensor, rx_dir: torch.Tensor,
 
 
 def gain_upper_bound(path: PathSolution, optics: Transceiver) -> torch.Tensor:
-    """G_UB = G_p G_ref n_c² / sin² ω_A: both ends pointed along the path (SPEC §6), ``[B]`` (1/m²)."""
+    """G_UB = G_p G_ref n_c² / sin² ω_A: both ends pointed along the path (docs/model.md §4), ``[B]`` (1/m²)."""
     g_p, g_ref = _path_terms(path, optics)
     return g_p * g_ref * _peak_arrival_gain(optics)
 
 
 def calm_sea_gain(link: LinkGeometry, optics: Transceiver, dtype: torch.dtype = torch.float64) -> float:
-    """G_0: the aligned gain on a flat sea for this geometry (1/m²), the intensity reference (SPEC §4)."""
+    """G_0: the aligned gain on a flat sea for this geometry (1/m²), the intensity reference (docs/model.md §4)."""
     tx, rx = link.positions(dtype)
     return float(calm_sea_gains(tx.unsqueeze(0), rx.unsqueeze(0), optics)[0])
 
@@ -182,7 +181,7 @@ def calm_sea_gains(tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver) -> t
 
 
 def pointing(tilt: torch.Tensor, up: bool) -> torch.Tensor:
-    """Unit pointing vector from a tilt vector v = (v_x, v_y), |v| ≤ 1 (SPEC §5).
+    """Unit pointing vector from a tilt vector v = (v_x, v_y), |v| ≤ 1 (docs/model.md §6).
 
     The transmitter (``up=True``) points (v_x, v_y, +sqrt(1 − |v|²)); the receiver
     (``up=False``) points (v_x, v_y, −sqrt(1 − |v|²)). ``tilt`` is ``[..., 2]``.
@@ -192,7 +191,7 @@ def pointing(tilt: torch.Tensor, up: bool) -> torch.Tensor:
 
 
 def _peak_arrival_gain(optics: Transceiver) -> float:
-    """G_A at α_A = 0: n_c² / sin² ω_A (SPEC §4)."""
+    """G_A at α_A = 0: n_c² / sin² ω_A (docs/model.md §4)."""
     return optics.concentrator_index**2 / math.sin(optics.half_fov) ** 2
 
 

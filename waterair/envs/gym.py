@@ -1,4 +1,4 @@
-"""Gymnasium views of :class:`waterair.env.WaterAirEnv` for Stable-Baselines3 / CleanRL users.
+"""Gymnasium views of :class:`waterair.envs.env.WaterAirEnv` for Stable-Baselines3 / CleanRL users.
 
 * :class:`WaterAirGymEnv`: one link as a ``gymnasium.Env`` (passes ``check_env``).
 * :class:`WaterAirVectorEnv`: B links as a ``gymnasium.vector.VectorEnv`` stepping one batched
@@ -17,8 +17,8 @@ import torch
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 
-from waterair.env import WaterAirEnv
-from waterair.env_config import EnvConfig
+from waterair.envs.config import EnvConfig
+from waterair.envs.env import WaterAirEnv
 
 INFO_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid")
 OBSERVATION_BOUNDS = (-1.0, 2.0)

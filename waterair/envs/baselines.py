@@ -1,4 +1,4 @@
-"""Model-based alignment baselines as TensorDict policies (SPEC §6).
+"""Model-based alignment baselines as TensorDict policies (docs/environment.md, baselines).
 
 Each policy reads what the environment writes into the tensordict (``tx_position``,
 ``rx_position`` and, for tracking, the last path's ``departure``/``arrival``) and writes
@@ -12,8 +12,9 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
-from waterair.env import WaterAirEnv
-from waterair.paths import flat_sea_point
+from waterair.envs.env import WaterAirEnv
+from waterair.physics.optics import unit_vector
+from waterair.physics.paths import flat_sea_point
 
 
 class PointingPolicy(TensorDictModuleBase):
@@ -33,10 +34,11 @@ class PointingPolicy(TensorDictModuleBase):
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         tx_dir, rx_dir = self.directions(tensordict)
-        # The present tilts come from the observation's pointing vectors (tx 0:3, rx 3:6), so the
-        # policy also acts correctly on a slice of the batch.
+        # The present tilts come from the observation's pointing vectors, so the policy also acts
+        # correctly on a slice of the batch.
         observation = tensordict.get("observation")
-        current = torch.cat((observation[:, 0:2], observation[:, 3:5]), dim=-1)
+        tx_now, rx_now = (self.env.observation_part(observation, f"{end}_pointing") for end in ("tx", "rx"))
+        current = torch.cat((tx_now[:, :2], rx_now[:, :2]), dim=-1)
         tensordict.set("action", self.env.action_for_pointing(tx_dir, rx_dir, current))
         return tensordict
 
@@ -58,7 +60,7 @@ class StraightFacing(PointingPolicy):
     name = "straight_facing"
 
     def directions(self, tensordict):
-        line = _unit(tensordict.get("rx_position") - tensordict.get("tx_position"))
+        line = unit_vector(tensordict.get("rx_position") - tensordict.get("tx_position"))
         return line, -line
 
 
@@ -70,7 +72,7 @@ class FlatSeaSnell(PointingPolicy):
     def directions(self, tensordict):
         tx, rx = tensordict.get("tx_position"), tensordict.get("rx_position")
         point = flat_sea_point(tx, rx, self.env.optics.n_water, self.env.optics.n_air)
-        return _unit(point - tx), _unit(point - rx)
+        return unit_vector(point - tx), unit_vector(point - rx)
 
 
 class PreviousPathTracking(PointingPolicy):
@@ -94,7 +96,3 @@ class PreviousPathTracking(PointingPolicy):
 
 BASELINES = {cls.name: cls for cls in (NoAlignment, StraightFacing, FlatSeaSnell, PreviousPathTracking)}
 """Baseline policy classes by name."""
-
-
-def _unit(v: torch.Tensor) -> torch.Tensor:
-    return v / torch.linalg.vector_norm(v, dim=-1, keepdim=True)

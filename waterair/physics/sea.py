@@ -1,6 +1,6 @@
 """Sea state: the JONSWAP spectrum, its directional spreading and their discretisation.
 
-SPEC §2 (paper Sec. III, eqs. for S(ω), G(ω, θ) and T(x, y, t)). Angular frequencies ω are in
+docs/model.md §1 (paper Sec. III, eqs. for S(ω), G(ω, θ) and T(x, y, t)). Angular frequencies ω are in
 rad/s, directions θ in radians relative to the wind, wind speed U10 in m/s, fetch in m.
 """
 
@@ -11,26 +11,26 @@ from dataclasses import dataclass
 
 import torch
 
-from waterair._validation import check_choice, check_int, check_range
+from waterair.core.validation import check_choice, check_int, check_range
 
 GRAVITY = 9.81
-"""Gravitational acceleration g (m/s²), SPEC §2."""
+"""Gravitational acceleration g (m/s²), docs/model.md §1."""
 
 JONSWAP_SIGMA_LOW = 0.07
-"""Peak width σ for ω ≤ ω_p (SPEC §2)."""
+"""Peak width σ for ω ≤ ω_p (docs/model.md §1)."""
 JONSWAP_SIGMA_HIGH = 0.09
-"""Peak width σ for ω > ω_p (SPEC §2)."""
+"""Peak width σ for ω > ω_p (docs/model.md §1)."""
 
 BAND_LOW = 0.6
 """Lower band edge as a multiple of ω_p: below it lies < 1e-4 of m0 (exp(-1.25/0.6⁴) ≈ 7e-5)."""
 BAND_HIGH = 6.0
-"""Upper band edge as a multiple of ω_p: the ω⁻⁵ tail above it holds ≈ 0.1 % of m0 (SPEC §2)."""
+"""Upper band edge as a multiple of ω_p: the ω⁻⁵ tail above it holds ≈ 0.1 % of m0 (docs/model.md §1)."""
 
 AMPLITUDE_CONVENTIONS = ("standard", "paper")
 
 
 def jonswap_alpha(wind, fetch):
-    """Phillips constant α = 0.076 (U² / (g F))^0.22 (SPEC §2).
+    """Phillips constant α = 0.076 (U² / (g F))^0.22 (docs/model.md §1).
 
     Args: wind U10 (m/s), fetch F (m); floats or broadcastable tensors.
     """
@@ -38,7 +38,7 @@ def jonswap_alpha(wind, fetch):
 
 
 def jonswap_omega_p(wind, fetch):
-    """Peak angular frequency ω_p = 22 (g² / (U F))^(1/3) in rad/s (SPEC §2).
+    """Peak angular frequency ω_p = 22 (g² / (U F))^(1/3) in rad/s (docs/model.md §1).
 
     Args: wind U10 (m/s), fetch F (m); floats or broadcastable tensors.
     """
@@ -46,7 +46,7 @@ def jonswap_omega_p(wind, fetch):
 
 
 def jonswap(omega: torch.Tensor, wind, fetch: float, gamma: float = 3.3) -> torch.Tensor:
-    """JONSWAP frequency spectrum S(ω) in m²·s/rad (SPEC §2, paper eq. (6)).
+    """JONSWAP frequency spectrum S(ω) in m²·s/rad (docs/model.md §1, paper eq. (6)).
 
     Args:
         omega: angular frequency (rad/s), any shape; S is 0 where ω ≤ 0.
@@ -66,7 +66,7 @@ def jonswap(omega: torch.Tensor, wind, fetch: float, gamma: float = 3.3) -> torc
 
 
 def spreading(omega: torch.Tensor, theta: torch.Tensor, omega_p) -> torch.Tensor:
-    """Directional spreading G(ω, θ) = (1/π)[1 + p cos 2θ + q cos 4θ] in 1/rad (SPEC §2, eq. (7)).
+    """Directional spreading G(ω, θ) = (1/π)[1 + p cos 2θ + q cos 4θ] in 1/rad (docs/model.md §1, paper eq. (7)).
 
     Args:
         omega: angular frequency (rad/s), broadcastable against ``theta``.
@@ -84,7 +84,7 @@ def spreading(omega: torch.Tensor, theta: torch.Tensor, omega_p) -> torch.Tensor
 
 @dataclass(frozen=True)
 class SeaState:
-    """A validated sea state and its harmonic discretisation (SPEC §2).
+    """A validated sea state and its harmonic discretisation (docs/model.md §1).
 
     Attributes:
         wind: wind speed U10 (m/s), in (0, 60].
@@ -182,9 +182,11 @@ class SeaState:
         ``a_ij = sqrt(c · S(ω_i) w_ij Δω_i)`` with c = 2 (standard) or 1 (paper), where
         ``w_ij = G(ω_i, θ_j) Δθ`` normalised so that ``Σ_j w_ij = 1`` exactly: for n_dir ≥ 3 the
         midpoint rule already gives 1; the normalisation keeps Var η = m0 for coarser grids too.
-        Correction (SPEC §2): the paper's form has c = 1, which gives half the variance.
+        Correction (docs/model.md §1): the paper's form has c = 1, which gives half the variance.
         ``wind`` (m/s, ``[B]`` for ``omega`` ``[B, n_freq]``) overrides :attr:`wind` per row.
         """
+        wind_speed: float | torch.Tensor
+        omega_p: float | torch.Tensor
         if wind is None:
             wind_speed, omega_p = self.wind, self.omega_p
         else:

@@ -1,6 +1,6 @@
 """Physics figures of the paper: the JONSWAP spectrum (Fig. 2) and a wave-surface snapshot (Fig. 3).
 
-python -m waterair.figures --out outputs/figures [--wind 12 --fetch 2e4 --seed 0]
+python -m waterair.evaluation.figures --out outputs/figures [--wind 12 --fetch 2e4 --seed 0]
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import torch  # noqa: E402
 
-from waterair.sea import SeaState, spreading  # noqa: E402
-from waterair.surface import WaveSurface  # noqa: E402
+from waterair.physics.sea import SeaState, spreading  # noqa: E402
+from waterair.physics.surface import WaveSurface  # noqa: E402
 
 POINTS_PER_CHUNK = 2048
 """Surface points evaluated at once when drawing a snapshot (bounds memory at P × K floats)."""

@@ -14,18 +14,28 @@ import time
 
 import torch
 
+from waterair.bench.common import machine, sincos_floor
+from waterair.core.devices import resolve_device
+from waterair.envs.env import WaterAirEnv
+from waterair.physics import solve_path
+
 SECONDS_PER_MEASUREMENT = 2.0
 """Each timing runs about this long (at least 5 steps)."""
+SAMPLED_STEPS = 20
+"""Steps over which the solver iterations per step are counted (outside the timed loop)."""
 
 
-def worker(batch: int, solver: str, compile_kernel: bool, device: str) -> dict:
+def worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype: str) -> dict:
     """Time raw ``env.step`` and ``env.rollout`` at one batch size (runs inside the worker)."""
-    from waterair.bench import sincos_floor
-    from waterair.env import WaterAirEnv
-
     baseline_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     env = WaterAirEnv(
-        num_envs=batch, seed=0, solver=solver, compile_kernel=compile_kernel, device=device, max_steps=10**6
+        num_envs=batch,
+        seed=0,
+        solver=solver,
+        compile_kernel=compile_kernel,
+        device=device,
+        dtype=dtype,
+        max_steps=10**6,
     )
     td = env.reset()
     generator = torch.Generator().manual_seed(0)
@@ -36,16 +46,9 @@ def worker(batch: int, solver: str, compile_kernel: bool, device: str) -> dict:
     for _ in range(3):
         td = env.step(td)["next"].set("action", td["action"])
     steps = max(5, int(SECONDS_PER_MEASUREMENT / ((time.perf_counter() - start) / 3)))
-    iterations = []
-
-    def step_loop():
-        nonlocal td
-        for _ in range(steps):
-            td = env.step(td)["next"].set("action", td["action"])
-            iterations.append(env.last_path_iterations.float().mean().item())
-
     start = time.perf_counter()
-    step_loop()
+    for _ in range(steps):
+        td = env.step(td)["next"].set("action", td["action"])
     if env.device.type == "cuda":
         torch.cuda.synchronize()
     step_s = (time.perf_counter() - start) / steps
@@ -55,7 +58,7 @@ def worker(batch: int, solver: str, compile_kernel: bool, device: str) -> dict:
         torch.cuda.synchronize()
     rollout_s = (time.perf_counter() - start) / steps
     floor = sincos_floor(batch, env.surface.num_harmonics, 5, env.device, env.float_dtype)
-    evaluations = 1.0 + sum(iterations) / len(iterations)
+    evaluations = 1.0 + mean_iterations(env, td, SAMPLED_STEPS)
     peak_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - baseline_kb) / 1024
     if env.device.type == "cuda":
         peak_mb = torch.cuda.max_memory_allocated() / 2**20
@@ -73,22 +76,57 @@ def worker(batch: int, solver: str, compile_kernel: bool, device: str) -> dict:
     }
 
 
-def bench_env(sizes, centroid_sizes, compile_kernel: bool, device: str) -> dict:
-    """Run every (B, solver) point in its own process and collect the records."""
-    from waterair.bench import machine
-    from waterair.env_config import resolve_device
+def mean_iterations(env: WaterAirEnv, td, steps: int) -> float:
+    """Mean solver iterations of the path solve in each of the next ``steps`` steps.
 
+    Before each step the same warm-started solve the step will make is repeated outside it (the
+    path point of the last step, the next time), so the timed steps carry no counting.
+    """
+    counts = []
+    for _ in range(steps):
+        path = solve_path(
+            env.surface,
+            env.tx_position,
+            env.rx_position,
+            env.time + env.config.dt,
+            env.config.solver,
+            init=env.point[:, :2],
+            n_water=env.optics.n_water,
+            n_air=env.optics.n_air,
+            compiled=env.config.compile_kernel,
+        )
+        counts.append(path.iterations.double().mean().item())
+        td = env.step(td)["next"].set("action", td["action"])
+    return sum(counts) / len(counts)
+
+
+def bench_env(sizes, centroid_sizes, compile_kernel: bool, device: str, dtype: str) -> dict:
+    """Run every (B, solver) point in its own process and collect the records."""
     rows = []
     for solver, solver_sizes in (("newton", sizes), ("centroid", centroid_sizes)):
         for batch in solver_sizes:
-            args = [sys.executable, "-m", "waterair.bench_env", str(batch), solver, str(int(compile_kernel)), device]
+            args = [
+                sys.executable,
+                "-m",
+                "waterair.bench.env",
+                str(batch),
+                solver,
+                str(int(compile_kernel)),
+                device,
+                dtype,
+            ]
             done = subprocess.run(args, capture_output=True, text=True, check=False)
             if done.returncode != 0:
                 raise RuntimeError(f"env benchmark worker B={batch} {solver} failed:\n{done.stderr[-2000:]}")
             rows.append(json.loads(done.stdout.strip().splitlines()[-1]))
             print(env_row(rows[-1]), flush=True)
     resolved = resolve_device(device)
-    return {"benchmark": "env", **machine(resolved, torch.float32), "compiled_kernel": compile_kernel, "rows": rows}
+    return {
+        "benchmark": "env",
+        **machine(resolved, getattr(torch, dtype)),
+        "compiled_kernel": compile_kernel,
+        "rows": rows,
+    }
 
 
 ENV_HEADER = (
@@ -105,5 +143,5 @@ def env_row(r: dict) -> str:
 
 
 if __name__ == "__main__":
-    batch_arg, solver_arg, compile_arg, device_arg = sys.argv[1:5]
-    print(json.dumps(worker(int(batch_arg), solver_arg, bool(int(compile_arg)), device_arg)))
+    batch_arg, solver_arg, compile_arg, device_arg, dtype_arg = sys.argv[1:6]
+    print(json.dumps(worker(int(batch_arg), solver_arg, bool(int(compile_arg)), device_arg, dtype_arg)))

@@ -1,4 +1,4 @@
-"""Harmonic wave surface: a batch of independent sea realisations (SPEC §2, paper eq. (9)).
+"""Harmonic wave surface: a batch of independent sea realisations (docs/model.md §2, paper eq. (9)).
 
     η(x, y, t) = Σ_k a_k cos(ω_k t − kx_k x − ky_k y + ε_k),   |k| = ω² / g (deep water)
 
@@ -8,14 +8,15 @@ operation evaluates B different seas. Positions are in metres, time in seconds.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import torch
-from tensordict import tensorclass
+from tensordict import TensorClass
 
-from waterair._validation import check_int
-from waterair.sea import GRAVITY, SeaState
+from waterair.core.validation import check_int
+from waterair.physics.sea import GRAVITY, SeaState
 
 
 @dataclass
@@ -41,7 +42,7 @@ def harmonic_sums(omega, phase, kx, ky, amplitude, x, y, t, order: int):
     Returns a tuple of ``[B, P]`` tensors: (η,), (η, η_x, η_y) or (η, η_x, η_y, η_xx, η_xy, η_yy).
 
     One elementwise expression, so that ``torch.compile`` fuses it into a single pass over the
-    harmonics (see :func:`use_compiled_kernel`); eager PyTorch runs it unchanged.
+    harmonics (see :func:`compiled_harmonic_sums`); eager PyTorch runs it unchanged.
     """
     omega, phase, kx, ky, amplitude = (v.unsqueeze(1) for v in (omega, phase, kx, ky, amplitude))
     psi = omega * t[:, None, None] + phase - kx * x.unsqueeze(-1) - ky * y.unsqueeze(-1)
@@ -57,27 +58,19 @@ def harmonic_sums(omega, phase, kx, ky, amplitude, x, y, t, order: int):
     return (height, *slopes, -(a_cos_kx * kx).sum(-1), -(a_cos_kx * ky).sum(-1), -(a_cos * ky * ky).sum(-1))
 
 
-_kernel = harmonic_sums
-
-
-def compiled_kernel_enabled() -> bool:
-    """Whether :func:`use_compiled_kernel` is on (solvers compile their own fused steps then)."""
-    return _kernel is not harmonic_sums
-
-
-def use_compiled_kernel(enabled: bool = True) -> None:
-    """Route every surface evaluation through ``torch.compile(harmonic_sums)`` (or back to eager).
+@functools.cache
+def compiled_harmonic_sums():
+    """``torch.compile(harmonic_sums)``, built on first use and shared by every caller that asks.
 
     Compiled, an order-2 evaluation runs at about the cost of one sin+cos pass over ``[B, K]``
     (≈ 5× faster than eager on a 2-core CPU, see docs/benchmarks.md) after a one-off compile of
-    ~30-60 s per process. Shapes are dynamic, so batch-size changes do not recompile.
+    ~30-60 s per process. Shapes are dynamic, so batch-size changes do not recompile. Asking for
+    it changes nothing for callers that evaluate eagerly.
     """
-    global _kernel
-    _kernel = torch.compile(harmonic_sums, dynamic=True) if enabled else harmonic_sums
+    return torch.compile(harmonic_sums, dynamic=True)
 
 
-@tensorclass
-class WaveSurface:
+class WaveSurface(TensorClass):
     """B independent harmonic sea surfaces with K harmonics each.
 
     Components, all ``[B, K]``: ``omega`` (rad/s), ``kx``, ``ky`` (wavenumber components, rad/m),
@@ -162,19 +155,23 @@ class WaveSurface:
         """Discretised variance Σ a²/2 (m²) of each realisation, ``[B]``: its share of m0."""
         return 0.5 * (self.amplitude**2).sum(-1)
 
-    def evaluate(self, x: torch.Tensor, y: torch.Tensor, t: float | torch.Tensor, order: int = 2) -> SurfaceSample:
+    def evaluate(
+        self, x: torch.Tensor, y: torch.Tensor, t: float | torch.Tensor, order: int = 2, *, compiled: bool = False
+    ) -> SurfaceSample:
         """Height and derivatives up to ``order`` (0, 1 or 2) at points ``(x, y)`` and time ``t``.
 
         Args:
             x, y: horizontal position (m), ``[B]`` (one point per realisation) or ``[B, P]``.
             t: time (s), a float or a ``[B]`` tensor.
             order: 0 for η only (one cos pass); 1 adds the slopes; 2 adds the second derivatives.
+            compiled: evaluate through :func:`compiled_harmonic_sums` instead of eagerly.
         """
         single = x.dim() == 1
         if single:
             x, y = x.unsqueeze(-1), y.unsqueeze(-1)
         time = torch.as_tensor(t, dtype=self.omega.dtype, device=self.omega.device).expand(x.shape[0])
-        sums = _kernel(self.omega, self.phase, self.kx, self.ky, self.amplitude, x, y, time, order)
+        kernel = compiled_harmonic_sums() if compiled else harmonic_sums
+        sums = kernel(self.omega, self.phase, self.kx, self.ky, self.amplitude, x, y, time, order)
         if single:
             sums = tuple(v.squeeze(-1) for v in sums)
         return SurfaceSample(*sums)

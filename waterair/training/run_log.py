@@ -13,6 +13,8 @@ from pathlib import Path
 
 from torch.utils.tensorboard import SummaryWriter
 
+from waterair.core.files import atomic_write_csv
+
 
 class RunLog:
     """TensorBoard + CSV logger writing under ``run_dir``."""
@@ -48,9 +50,4 @@ class RunLog:
 
     def _write_csv(self) -> None:
         columns = ["frames"] + sorted({key for row in self._rows for key in row} - {"frames"})
-        temporary = self.csv_path.with_suffix(".csv.tmp")
-        with temporary.open("w", newline="") as handle:
-            writer = csv.DictWriter(handle, fieldnames=columns)
-            writer.writeheader()
-            writer.writerows(self._rows)
-        temporary.replace(self.csv_path)
+        atomic_write_csv(self.csv_path, columns, self._rows)

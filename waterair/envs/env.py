@@ -1,4 +1,4 @@
-"""TensorDict-native TorchRL environment of B independent water-air links (SPEC §5).
+"""TensorDict-native TorchRL environment of B independent water-air links (docs/environment.md).
 
 ``WaterAirEnv(num_envs=1024, wind=12.0, device="cpu")`` or ``WaterAirEnv(EnvConfig(...))``.
 """
@@ -12,11 +12,12 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
-from waterair.channel import calm_sea_gains, channel_gain, gain_upper_bound, pointing
-from waterair.env_config import EnvConfig, resolve_device
-from waterair.paths import flat_sea_point, solve_path
-from waterair.rewards import Reward
-from waterair.surface import WaveSurface, use_compiled_kernel
+from waterair.core.devices import resolve_device
+from waterair.envs.config import EnvConfig
+from waterair.envs.rewards import Reward
+from waterair.physics.channel import calm_sea_gains, channel_gain, gain_upper_bound, pointing
+from waterair.physics.paths import flat_sea_point, solve_path
+from waterair.physics.surface import WaveSurface
 
 INTENSITY_EPS = 1e-6
 """Offset inside the observed intensity feature log10(I + ε), so that I = 0 maps to a finite value."""
@@ -42,7 +43,7 @@ def intensity_feature(intensity: torch.Tensor) -> torch.Tensor:
 
 
 class WaterAirEnv(EnvBase):
-    """B independent water-to-air optical links, each with its own sea (SPEC §5).
+    """B independent water-to-air optical links, each with its own sea (docs/environment.md).
 
     **Action** ``[B, 4]`` in [-1, 1]: (tx_vx, tx_vy, rx_vx, rx_vy). In ``absolute`` mode the tilt
     vectors are action · sin(max_tilt); in ``delta`` mode action · sin(max_slew · dt) is added to
@@ -56,7 +57,7 @@ class WaterAirEnv(EnvBase):
     direction in the receiver frame divided by tan ω_A; 0 when no light arrives) and ``history``
     (``history_length`` previous intensity features, newest first).
 
-    **Reward** ``[B, 1]``: :class:`waterair.rewards.Reward` of the intensity I = G / G_0, where G_0
+    **Reward** ``[B, 1]``: :class:`waterair.envs.rewards.Reward` of the intensity I = G / G_0, where G_0
     is the aligned calm-sea gain of the same geometry.
 
     **Start**: new sea phases and jittered frequencies per link (and wind / offset drawn from their
@@ -80,8 +81,6 @@ class WaterAirEnv(EnvBase):
     def __init__(self, config: EnvConfig | None = None, *, reward: Reward | None = None, **overrides):
         config = (config or EnvConfig()).replace(**overrides) if overrides else (config or EnvConfig())
         super().__init__(device=resolve_device(config.device), batch_size=torch.Size([config.num_envs]))
-        if config.compile_kernel:
-            use_compiled_kernel(True)
         self.config = config
         self.reward_fn = reward or Reward()
         self.sea, self.link, self.optics = config.sea(), config.link(), config.transceiver()
@@ -127,9 +126,9 @@ class WaterAirEnv(EnvBase):
             init=self.point[:, :2],
             n_water=self.optics.n_water,
             n_air=self.optics.n_air,
+            compiled=self.config.compile_kernel,
         )
         self._record(path, torch.arange(self.batch_size[0], device=self.device))
-        self.last_path_iterations = path.iterations
         out = self._output()
         truncated = (self.steps >= self.config.max_steps).unsqueeze(-1)
         out.update(
@@ -149,7 +148,16 @@ class WaterAirEnv(EnvBase):
         else:
             self._generator.manual_seed(int(seed))
 
+    @property
+    def rng(self) -> torch.Generator:
+        """The environment's own CPU generator (seas, domain randomisation); save and restore its state."""
+        return self._generator
+
     # --- helpers for policies ---------------------------------------------------------------
+
+    def observation_part(self, observation: torch.Tensor, name: str) -> torch.Tensor:
+        """The part ``name`` of observations ``[..., size]`` (see ``EnvConfig.observation_layout``)."""
+        return observation[..., self.config.observation_layout[name]]
 
     def action_for_pointing(
         self, tx_dir: torch.Tensor, rx_dir: torch.Tensor, current: torch.Tensor | None = None
@@ -256,6 +264,7 @@ class WaterAirEnv(EnvBase):
             init=flat[:, :2],
             n_water=self.optics.n_water,
             n_air=self.optics.n_air,
+            compiled=self.config.compile_kernel,
         )
         self._record(path, rows)
         self.history[rows] = 0.0
@@ -323,16 +332,14 @@ class WaterAirEnv(EnvBase):
 
     def _output(self) -> TensorDict:
         m = self.measurement
-        parts = [
-            pointing(self.tx_tilt, up=True),
-            pointing(self.rx_tilt, up=False),
-            intensity_feature(m["intensity"]).unsqueeze(-1),
-            (self.time / self.config.episode_seconds).unsqueeze(-1),
-        ]
-        if "spot" in self.config.observation_extras:
-            parts.append(m["spot"])
-        if "history" in self.config.observation_extras:
-            parts.append(self.history)
+        parts = {
+            "tx_pointing": pointing(self.tx_tilt, up=True),
+            "rx_pointing": pointing(self.rx_tilt, up=False),
+            "intensity": intensity_feature(m["intensity"]).unsqueeze(-1),
+            "time": (self.time / self.config.episode_seconds).unsqueeze(-1),
+            "spot": m["spot"],
+            "history": self.history,
+        }
         out = TensorDict(
             {key: m[key].clone() for key in MEASUREMENT_KEYS},
             batch_size=self.batch_size,
@@ -340,7 +347,7 @@ class WaterAirEnv(EnvBase):
         )
         out.update(
             {
-                "observation": torch.cat(parts, dim=-1),
+                "observation": torch.cat([parts[name] for name in self.config.observation_layout], dim=-1),
                 "tx_position": self.tx_position.clone(),
                 "rx_position": self.rx_position.clone(),
             }

@@ -1,4 +1,4 @@
-"""Validated configuration of :class:`waterair.env.WaterAirEnv` (the ``env`` config group).
+"""Validated configuration of :class:`waterair.envs.env.WaterAirEnv` (the ``env`` config group).
 
 Every key is flat so that a Hydra override reads ``env.wind=8``; docs/environment.md lists each
 key with its unit, default and allowed range. Validation happens once, here, and every error
@@ -8,32 +8,34 @@ names the key (``env.<name>``), the value and the allowed range.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-import torch
-
-from waterair._validation import check_choice, check_int, check_range
-from waterair.channel import LinkGeometry, Transceiver
-from waterair.paths import METHODS
-from waterair.sea import SeaState
+from waterair.core.devices import DEVICES
+from waterair.core.validation import check_choice, check_int, check_range
+from waterair.physics.channel import LinkGeometry, Transceiver
+from waterair.physics.paths import METHODS
+from waterair.physics.sea import SeaState
 
 ACTION_MODES = ("absolute", "delta")
 OBSERVATION_EXTRAS = ("spot", "history")
-DEVICES = ("cpu", "cuda", "auto")
 DTYPES = ("float32", "float64")
 
 
 @dataclass(frozen=True)
 class EnvConfig:
-    """Everything that defines a batch of water-air links (SPEC §1-§5); units in the names/comments."""
+    """Everything that defines a batch of water-air links; units in the names and comments.
+
+    The physics keys are described in docs/model.md, the interface keys in docs/environment.md.
+    """
 
     num_envs: int = 16  # B, independent links stepped together
     device: str = "cpu"  # cpu, cuda, or auto (cuda when available)
     dtype: str = "float32"
     seed: int | None = None  # None: nondeterministic
-    # sea (SPEC §2)
+    # sea (docs/model.md §1)
     wind: float = 12.0  # U10, m/s
     fetch: float = 2.0e4  # m
     gamma: float = 3.3
@@ -41,18 +43,18 @@ class EnvConfig:
     n_freq: int = 64
     n_dir: int = 32
     amplitude: str = "standard"  # standard | paper
-    # geometry (SPEC §1)
+    # geometry (docs/model.md §0)
     tx_depth: float = 10.0  # m
     rx_height: float = 10.0  # m
     offset_ratio: float = 0.1  # horizontal offset / vertical distance
     offset_azimuth_deg: float = 0.0
-    # optics (SPEC §4)
+    # optics (docs/model.md §4)
     wavelength: float = 520e-9  # m
     divergence: float = 0.05  # ω_D, rad
     half_fov: float = 0.17  # ω_A, rad
     concentrator_index: float = 1.0
     water: str = "clear_ocean"
-    # dynamics and interface (SPEC §5)
+    # dynamics and interface (docs/environment.md)
     dt: float = 0.05  # s
     max_steps: int = 500  # steps per episode (truncation)
     action_mode: str = "absolute"  # absolute | delta
@@ -171,24 +173,32 @@ class EnvConfig:
         """sin(max_tilt): the largest norm of a tilt vector."""
         return math.sin(math.radians(self.max_tilt_deg))
 
+    @functools.cached_property
+    def observation_layout(self) -> dict[str, slice]:
+        """Where each named part sits in the observation vector, in order (docs/environment.md).
+
+        ``tx_pointing`` (3), ``rx_pointing`` (3), ``intensity`` (1), ``time`` (1), then the opt-in
+        extras in this order: ``spot`` (2) and ``history`` (``history_length``).
+        """
+        sizes = {"tx_pointing": 3, "rx_pointing": 3, "intensity": 1, "time": 1}
+        if "spot" in self.observation_extras:
+            sizes["spot"] = 2
+        if "history" in self.observation_extras:
+            sizes["history"] = self.history_length
+        layout, start = {}, 0
+        for name, size in sizes.items():
+            layout[name] = slice(start, start + size)
+            start += size
+        return layout
+
     @property
     def observation_size(self) -> int:
-        """8 (SPEC §5) plus the opt-in extras: 2 for ``spot``, ``history_length`` for ``history``."""
-        extras = self.observation_extras
-        return 8 + 2 * ("spot" in extras) + self.history_length * ("history" in extras)
+        """Length of the observation vector: 8 plus the opt-in extras."""
+        return max(part.stop for part in self.observation_layout.values())
 
     @property
     def episode_seconds(self) -> float:
         return self.dt * self.max_steps
-
-
-def resolve_device(name: str) -> torch.device:
-    """``auto`` → CUDA when available, else CPU; ``cpu``/``cuda`` as given (``cuda`` must exist)."""
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    if name == "cuda" and not torch.cuda.is_available():
-        raise ValueError("device = 'cuda' is not available on this machine (no CUDA device); use auto or cpu")
-    return torch.device(name)
 
 
 def _check_pair(name: str, pair: Sequence[float], low: float, high: float, unit: str) -> tuple[float, float]:

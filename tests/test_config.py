@@ -1,0 +1,63 @@
+"""Every option of every config group composes and validates; option files carry only keys they read."""
+
+import pytest
+from conftest import ROOT, compose_config
+from omegaconf import OmegaConf
+
+from waterair.training.config import validate
+
+GROUPS = {
+    group.name: sorted(p.stem for p in group.glob("*.yaml"))
+    for group in sorted((ROOT / "conf").iterdir())
+    if group.is_dir() and group.name != "env"
+}
+OPTIONS = [(group, option) for group, options in GROUPS.items() for option in options]
+OPTIONS += [("env/sea", p.stem) for p in sorted((ROOT / "conf" / "env" / "sea").glob("*.yaml"))]
+LAUNCHERS = ["basic", "joblib", "submitit_local", "submitit_slurm"]
+SELECTED = {"actor", "critic", "agent", "buffer", "noise", "reward", "logger"}
+"""Groups whose options say which one they are, always under the key ``name``."""
+
+
+def test_every_group_is_covered():
+    assert set(GROUPS) == {"actor", "agent", "buffer", "collector", "critic", "logger", "noise", "reward"}
+    assert {"calm", "moderate", "rough"} <= {option for group, option in OPTIONS if group == "env/sea"}
+
+
+@pytest.mark.parametrize("group,option", OPTIONS, ids=[f"{g}={o}" for g, o in OPTIONS])
+def test_every_option_composes_and_validates(group, option):
+    cfg = compose_config("config", [f"{group}={option}"])
+    validate(cfg)
+    if group in SELECTED:
+        assert cfg[group].name == option
+
+
+@pytest.mark.parametrize("launcher", LAUNCHERS)
+def test_every_launcher_composes(launcher):
+    cfg = compose_config("config", [f"hydra/launcher={launcher}"], return_hydra_config=True)
+    validate(cfg)
+    assert launcher.split("_")[0] in cfg.hydra.launcher._target_.lower()
+
+
+@pytest.mark.parametrize(
+    "group,option,unread",
+    [("reward", "linear", {"a", "b", "c", "gain", "bias", "floor"}), ("reward", "log", {"a", "b", "c", "gain"}),
+     ("agent", "ddpg", {"policy_delay", "policy_noise", "noise_clip"}), ("noise", "gaussian", {"theta"}),
+     ("buffer", "memory", {"scratch_dir"})],
+)  # fmt: skip
+def test_option_files_carry_no_key_their_option_ignores(group, option, unread):
+    keys = set(OmegaConf.load(ROOT / "conf" / group / f"{option}.yaml"))
+    assert not keys & unread
+
+
+def test_a_loss_target_that_does_not_match_the_agent_is_a_one_line_error():
+    cfg = compose_config("config", ["agent=ddpg", "agent.loss._target_=torchrl.objectives.TD3Loss"])
+    with pytest.raises(ValueError, match=r"^agent.loss._target_ = 'torchrl.objectives.TD3Loss' is not allowed"):
+        validate(cfg)
+
+
+def test_the_shipped_policy_config_is_a_valid_config():
+    config = OmegaConf.load(ROOT / "waterair" / "assets" / "default_policy.yaml")
+    # Trained before total_frames had to be a multiple of frames_per_batch (800 then): it collected
+    # 250,400 frames, the number its policy file records.
+    config.total_frames = 250_400
+    validate(config)

@@ -1,0 +1,173 @@
+"""The package layout: imports point down the layers, no cycles, light imports, short modules.
+
+Layers, bottom to top: core → physics → envs → agents → evaluation → training, then the entry
+points. A module may import its own layer and the ones below; nothing imports ``waterair.bench``.
+Imports inside functions count too.
+"""
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import ROOT
+
+PACKAGE = ROOT / "waterair"
+LAYERS = ("core", "physics", "envs", "agents", "evaluation", "training")
+"""Sub-packages from the bottom up."""
+FORBIDDEN = {
+    "core": {"torchrl", "hydra", "omegaconf", "tensorboard", "matplotlib", "tensordict"},
+    "physics": {"torchrl", "hydra", "omegaconf", "tensorboard", "matplotlib"},
+    "envs": {"hydra", "omegaconf", "tensorboard", "matplotlib"},
+    "agents": {"hydra", "omegaconf", "tensorboard", "matplotlib"},
+    "evaluation": {"tensorboard"},
+}
+"""Third-party packages each layer must not import."""
+MAX_LINES = 420
+"""About 400 lines: a longer module is asking to be split."""
+
+
+def module_name(path: Path, root: Path = ROOT) -> str:
+    parts = path.relative_to(root).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imported_modules(path: Path, modules: set[str], root: Path = ROOT) -> set[str]:
+    """Every module ``path`` imports anywhere in its body (``from X import Y`` counts X.Y if it is a module)."""
+    name = module_name(path, root)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join([*anchor, base] if base else anchor)
+            for alias in node.names:
+                candidate = f"{base}.{alias.name}"
+                found.add(candidate if candidate in modules else base)
+    return found
+
+
+def graph(files: list[Path]) -> dict[str, set[str]]:
+    modules = {module_name(f) for f in files}
+    return {module_name(f): imported_modules(f, modules) for f in files}
+
+
+def layer_of(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[0] == "waterair" else None
+
+
+def layering_violations(imports: dict[str, set[str]]) -> list[str]:
+    """Imports that point up the layers, into bench, or at a package a layer must not use."""
+    problems = []
+    for source, targets in imports.items():
+        layer = layer_of(source)
+        for target in targets:
+            top = target.split(".")[0]
+            if layer in FORBIDDEN and top in FORBIDDEN[layer]:
+                problems.append(f"{source} imports {target} ({layer} must not use {top})")
+            if top != "waterair":
+                continue
+            if layer_of(target) == "bench" and layer != "bench":
+                problems.append(f"{source} imports {target} (nothing imports bench)")
+            if layer in LAYERS and target == "waterair":
+                problems.append(f"{source} imports the root package waterair (import the sub-package)")
+            if layer in LAYERS and layer_of(target) in LAYERS:
+                if LAYERS.index(layer_of(target)) > LAYERS.index(layer):
+                    problems.append(f"{source} ({layer}) imports {target} ({layer_of(target)}), a higher layer")
+    return problems
+
+
+def cycles(imports: dict[str, set[str]]) -> list[list[str]]:
+    """Import cycles among the modules (strongly connected components of more than one module)."""
+    index, low, stack, on_stack, found = {}, {}, [], set(), []
+
+    def visit(node):
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for nxt in imports.get(node, ()):
+            if nxt not in imports:
+                continue
+            if nxt not in index:
+                visit(nxt)
+                low[node] = min(low[node], low[nxt])
+            elif nxt in on_stack:
+                low[node] = min(low[node], index[nxt])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1 or node in imports.get(node, ()):
+                found.append(sorted(component))
+
+    for node in imports:
+        if node not in index:
+            visit(node)
+    return found
+
+
+SOURCES = sorted(PACKAGE.rglob("*.py")) + [ROOT / "train.py", ROOT / "evaluate.py"]
+
+
+def test_imports_point_down_the_layers():
+    assert layering_violations(graph(SOURCES)) == []
+
+
+def test_no_import_cycles():
+    assert cycles(graph(SOURCES)) == []
+
+
+def test_the_checks_catch_an_upward_import_and_a_cycle():
+    # The same checks on a made-up graph: physics reaching up into training, and a two-module cycle.
+    bad = {
+        "waterair.physics.sea": {"waterair.training.loop", "torchrl"},
+        "waterair.training.loop": {"waterair.training.builders"},
+        "waterair.training.builders": {"waterair.training.loop"},
+        "waterair.envs.env": {"waterair.bench.env"},
+    }
+    problems = layering_violations(bad)
+    assert any("higher layer" in p for p in problems)
+    assert any("must not use torchrl" in p for p in problems)
+    assert any("nothing imports bench" in p for p in problems)
+    assert cycles(bad) == [["waterair.training.builders", "waterair.training.loop"]]
+
+
+def test_function_level_imports_count(tmp_path):
+    module = tmp_path / "waterair" / "physics" / "late.py"
+    module.parent.mkdir(parents=True)
+    module.write_text("def f():\n    from waterair.envs.env import WaterAirEnv\n    return WaterAirEnv\n")
+    imports = {"waterair.physics.late": imported_modules(module, set(), root=tmp_path)}
+    assert imports["waterair.physics.late"] == {"waterair.envs.env"}
+    assert any("higher layer" in p for p in layering_violations(imports))
+
+
+@pytest.mark.parametrize("module", ["waterair", "waterair.physics"])
+def test_the_physics_api_imports_no_rl_or_plotting_stack(module):
+    heavy = ("torchrl", "hydra", "omegaconf", "tensorboard", "matplotlib")
+    code = f"import sys, {module}; print(sorted({{m.split('.')[0] for m in sys.modules}} & set({heavy!r})))"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"
+
+
+def test_no_module_is_much_over_400_lines():
+    long = {str(p.relative_to(ROOT)): n for p in SOURCES if (n := len(p.read_text().splitlines())) > MAX_LINES}
+    assert long == {}
+
+
+def test_the_readme_tour_runs_as_written():
+    readme = (ROOT / "README.md").read_text()
+    tour = readme.split("## A short tour", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    done = subprocess.run([sys.executable, "-c", tour], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    intensity = float(done.stdout.strip().removeprefix("tensor(").split(",")[0].rstrip(")"))
+    assert 0.8 < intensity < 1.2  # aligned along the exact path: about the calm-sea gain

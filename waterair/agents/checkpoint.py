@@ -1,0 +1,132 @@
+"""The policy file format: what a trained actor is saved as, and how it is loaded back.
+
+A policy file is a ``torch.save`` dictionary with ``format`` (:data:`POLICY_FORMAT`), ``actor``
+(the actor network's ``state_dict``), ``observation_size`` and ``frames`` (training frames, or
+None). A training checkpoint is a policy file with more entries (the learner's state), so
+everything that evaluates a policy reads both the same way: :func:`read_policy`. Files are
+written atomically and read with ``torch.load(weights_only=True)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+from tensordict.nn import TensorDictModule
+
+from waterair.agents.networks import make_actor
+from waterair.core.files import atomic_write
+
+POLICY_FORMAT = "waterair-policy/1"
+"""The format tag this version writes and reads."""
+ZIP_MAGIC = b"PK\x03\x04"
+"""The first bytes of every file ``torch.save`` writes (a zip archive)."""
+ACTION_SIZE = 4
+"""Actions are (tx_vx, tx_vy, rx_vx, rx_vy) (docs/environment.md)."""
+
+
+class CheckpointError(ValueError):
+    """A file that cannot be used as a policy; the message is one line naming the file and the reason."""
+
+
+@dataclass
+class PolicyFile:
+    """What :func:`read_policy` found in a policy file or training checkpoint."""
+
+    path: Path
+    actor_state: dict[str, torch.Tensor]
+    observation_size: int
+    frames: int | None
+
+    def actor(self, hidden: Sequence[int], activation: str, observation_size: int | None = None) -> TensorDictModule:
+        """The actor network with these weights, in eval mode on the CPU.
+
+        ``observation_size`` (the environment's) must equal the one the policy was trained with.
+        Raises :class:`CheckpointError` naming both sizes or both network shapes on a mismatch.
+        """
+        if observation_size is not None and observation_size != self.observation_size:
+            raise CheckpointError(
+                f"checkpoint {self.path}: trained with observations of size {self.observation_size}, but the "
+                f"environment gives {observation_size}; use the observation settings it was trained with"
+            )
+        module = make_actor(self.observation_size, ACTION_SIZE, hidden, activation)
+        expected = {k: tuple(v.shape) for k, v in module.state_dict().items()}
+        found = {k: tuple(v.shape) for k, v in self.actor_state.items()}
+        if expected != found:
+            raise CheckpointError(
+                f"checkpoint {self.path}: its actor has layers {_shapes(found)}, but actor.hidden = {list(hidden)} "
+                f"builds {_shapes(expected)}"
+            )
+        module.load_state_dict(self.actor_state)
+        return module.eval()
+
+
+def policy_state(actor: TensorDictModule, observation_size: int, frames: int | None) -> dict:
+    """The policy entries of a file: format tag, actor weights (on the CPU), sizes and frames."""
+    return {
+        "format": POLICY_FORMAT,
+        "actor": {k: v.detach().cpu().clone() for k, v in actor.state_dict().items()},
+        "observation_size": int(observation_size),
+        "frames": frames,
+    }
+
+
+def save_policy(path: str | Path, state: Mapping) -> Path:
+    """Write ``state`` (:func:`policy_state`, plus any extra entries) to ``path`` atomically."""
+    if state.get("format") != POLICY_FORMAT:
+        raise ValueError(f"save_policy: state['format'] must be {POLICY_FORMAT!r}")
+    return atomic_write(path, lambda handle: torch.save(dict(state), handle))
+
+
+def read_policy(path: str | Path) -> PolicyFile:
+    """Read a policy file or training checkpoint with ``weights_only=True``, checking its format.
+
+    Raises :class:`CheckpointError` with one line saying what the file is: missing, not a torch
+    file, truncated, another project's, or another format version.
+    """
+    path = Path(path)
+    state = load_state(path)
+    tag = state.get("format")
+    if tag != POLICY_FORMAT:
+        if isinstance(tag, str) and tag.startswith("waterair-policy/"):
+            raise CheckpointError(f"checkpoint {path} has format {tag!r}; this waterair reads {POLICY_FORMAT!r}")
+        raise CheckpointError(
+            f"checkpoint {path} is a torch file but not a waterair policy (no {POLICY_FORMAT!r} tag; "
+            f"found keys {sorted(map(str, state))[:6]})"
+        )
+    actor, size = state.get("actor"), state.get("observation_size")
+    if not isinstance(actor, dict) or not actor or not isinstance(size, int):
+        raise CheckpointError(f"checkpoint {path} has the {POLICY_FORMAT!r} tag but no actor weights or size")
+    frames = state.get("frames")
+    return PolicyFile(path, actor, size, int(frames) if frames is not None else None)
+
+
+def load_state(path: Path) -> dict:
+    """``torch.load(path, weights_only=True)`` of a dictionary, with one-line errors for bad files."""
+    if not path.is_file():
+        raise CheckpointError(f"checkpoint {path} does not exist")
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as error:  # torch raises many types for damaged or foreign bytes; classify by header
+        with path.open("rb") as handle:
+            zipped = handle.read(4) == ZIP_MAGIC
+        if zipped:
+            raise CheckpointError(f"checkpoint {path} is truncated or damaged ({path.stat().st_size} bytes)") from None
+        raise CheckpointError(f"checkpoint {path} is not a torch file ({_first_line(error)})") from None
+    if not isinstance(state, dict):
+        raise CheckpointError(f"checkpoint {path} holds a {type(state).__name__}, not a waterair policy")
+    return state
+
+
+def _first_line(error: Exception) -> str:
+    """``Type: first line of the message``, at most 120 characters, ending on a whole word."""
+    lines = str(error).strip().splitlines()
+    text = f"{type(error).__name__}: {lines[0]}" if lines else type(error).__name__
+    return text if len(text) <= 120 else text[:120].rsplit(" ", 1)[0] + " …"
+
+
+def _shapes(shapes: dict[str, tuple]) -> str:
+    """The weight matrices' shapes, in order, e.g. ``[256x8, 256x256, 4x256]``."""
+    return "[" + ", ".join("x".join(map(str, s)) for k, s in shapes.items() if k.endswith("weight")) + "]"

@@ -1,0 +1,37 @@
+"""The actor and critic networks (TorchRL modules), built from their sizes and an activation name."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from tensordict.nn import TensorDictModule
+from torch import nn
+from torchrl.modules import MLP, ValueOperator
+
+ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
+"""Activation names accepted by ``actor.activation`` / ``critic.activation``."""
+
+
+def make_actor(observation_size: int, action_size: int, hidden: Sequence[int], activation: str) -> TensorDictModule:
+    """Deterministic actor: MLP(``observation``) → tanh → ``action`` in [-1, 1], on the CPU."""
+    net = nn.Sequential(
+        MLP(
+            in_features=observation_size,
+            out_features=action_size,
+            num_cells=list(hidden),
+            activation_class=ACTIVATIONS[activation],
+        ),
+        nn.Tanh(),
+    )
+    return TensorDictModule(net, in_keys=["observation"], out_keys=["action"])
+
+
+def make_critic(observation_size: int, action_size: int, hidden: Sequence[int], activation: str) -> ValueOperator:
+    """Q(s, a): MLP on the concatenated ``observation`` and ``action``, on the CPU."""
+    net = MLP(
+        in_features=observation_size + action_size,
+        out_features=1,
+        num_cells=list(hidden),
+        activation_class=ACTIVATIONS[activation],
+    )
+    return ValueOperator(net, in_keys=["observation", "action"])

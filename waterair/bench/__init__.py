@@ -1,0 +1,1 @@
+"""Benchmarks (``python -m waterair.bench``); see :mod:`waterair.bench.__main__`."""

@@ -1,0 +1,82 @@
+"""Benchmarks: ``python -m waterair.bench physics|env|evaluate [--out FILE.json]``.
+
+Every number in one JSON file comes from one run on one machine, so ratios between them are
+meaningful. Timings are wall-clock medians after a warm-up.
+
+* ``physics``: path-solve time per batch (Newton cold and warm start, centroid), surface
+  evaluations per second, the sin+cos floor and the solve-to-floor ratio (:mod:`.physics`).
+* ``env``: raw ``env.step`` loop and TorchRL ``rollout`` env-steps per second and peak memory per
+  batch size, with the floor ratio (:mod:`.env`).
+* ``evaluate``: the default evaluation (shipped policy, every baseline, S1-S3), all policies in
+  one batch against one rollout per policy (:mod:`.evaluate`).
+
+Nothing imports this package; it may import every other one.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import torch
+
+from waterair.bench.common import machine
+from waterair.bench.env import ENV_HEADER, bench_env
+from waterair.bench.evaluate import bench_evaluate, evaluate_table
+from waterair.bench.physics import bench_physics, physics_table
+from waterair.core.devices import resolve_device
+from waterair.core.files import atomic_write_json
+from waterair.physics import SeaState
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m waterair.bench", description="waterair benchmarks (JSON out)")
+    sub = parser.add_subparsers(dest="suite", required=True)
+    physics = sub.add_parser("physics", help="path solvers and surface evaluation")
+    physics.add_argument("--sizes", type=int, nargs="+", default=[1, 64, 1024, 4096], help="batch sizes B")
+    physics.add_argument(
+        "--centroid-sizes",
+        type=int,
+        nargs="*",
+        default=[1, 64, 1024],
+        help="batch sizes at which the (slow) centroid solver is also timed",
+    )
+    physics.add_argument("--wind", type=float, default=12.0, help="wind speed U10 (m/s)")
+    physics.add_argument("--repeats", type=int, default=5, help="timed runs per measurement (median reported)")
+    env = sub.add_parser("env", help="environment steps per second and memory")
+    env.add_argument("--sizes", type=int, nargs="+", default=[1, 16, 256, 1024, 4096], help="batch sizes B")
+    env.add_argument(
+        "--centroid-sizes", type=int, nargs="*", default=[1, 16], help="batch sizes for the centroid solver"
+    )
+    evaluation = sub.add_parser("evaluate", help="the default evaluate.py work, batched vs one policy at a time")
+    for p in (physics, env):
+        p.add_argument("--dtype", choices=["float32", "float64"], default="float32")
+    for p in (physics, env, evaluation):
+        p.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto")
+        p.add_argument("--compile", action="store_true", help="evaluate the surface through torch.compile")
+        p.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
+    args = parser.parse_args(argv)
+    try:
+        device = resolve_device(args.device)
+        sea = SeaState(wind=args.wind) if args.suite == "physics" else None
+    except ValueError as error:
+        parser.exit(2, f"error: {error}\n")
+    if args.suite == "evaluate":
+        record = {"machine": machine(device, torch.float32), **bench_evaluate(args.device, args.compile)}
+        print(evaluate_table(record))
+    elif args.suite == "env":
+        print(f"env benchmark: {device}, {'compiled' if args.compile else 'eager'} surface kernel\n\n{ENV_HEADER}")
+        record = bench_env(args.sizes, args.centroid_sizes, args.compile, args.device, args.dtype)
+    else:
+        dtype = getattr(torch, args.dtype)
+        record = bench_physics(args.sizes, args.centroid_sizes, args.repeats, device, dtype, sea, args.compile)
+        print(physics_table(record))
+    out = args.out or Path("outputs/bench") / f"{args.suite}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(out, record)
+    print(f"\nwritten {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

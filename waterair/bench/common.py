@@ -1,0 +1,49 @@
+"""What every benchmark shares: a median timer, the sin+cos floor and where the numbers were measured."""
+
+from __future__ import annotations
+
+import os
+import platform
+import statistics
+import time
+from collections.abc import Callable
+
+import torch
+
+
+def timed(fn: Callable[[], object], repeats: int, device: torch.device) -> float:
+    """Median wall-clock seconds of ``fn()`` over ``repeats`` runs, after one warm-up run."""
+    fn()
+    samples = []
+    for _ in range(repeats):
+        _sync(device)
+        start = time.perf_counter()
+        fn()
+        _sync(device)
+        samples.append(time.perf_counter() - start)
+    return statistics.median(samples)
+
+
+def sincos_floor(batch: int, harmonics: int, repeats: int, device: torch.device, dtype: torch.dtype) -> float:
+    """Seconds for one ``sin`` and one ``cos`` over a ``[batch, harmonics]`` tensor."""
+    x = torch.rand(batch, harmonics, device=device, dtype=dtype) * 100.0
+    return timed(lambda: (torch.sin(x), torch.cos(x)), repeats, device)
+
+
+def machine(device: torch.device, dtype: torch.dtype) -> dict:
+    """Where the numbers were measured."""
+    name = torch.cuda.get_device_name(device) if device.type == "cuda" else (platform.processor() or platform.machine())
+    return {
+        "device": str(device),
+        "device_name": name,
+        "dtype": str(dtype).removeprefix("torch."),
+        "threads": torch.get_num_threads(),
+        "cpu_count": os.cpu_count(),
+        "torch": torch.__version__,
+        "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
+
+
+def _sync(device: torch.device) -> None:
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)

@@ -1,0 +1,109 @@
+"""The learned policies an evaluation compares: which files, what they are called, how they act.
+
+A policy file or training checkpoint is read by :func:`waterair.agents.checkpoint.read_policy`;
+here it gets a label and the training config found beside it, which says the environment
+interface it expects (:data:`INTERFACE_KEYS`) and its network shape.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from omegaconf import DictConfig, ListConfig, OmegaConf
+
+from waterair.agents.checkpoint import CheckpointError, PolicyFile, read_policy
+
+SHIPPED_POLICY = Path(__file__).resolve().parents[1] / "assets" / "default_policy.pt"
+"""The default policy that ``python evaluate.py`` evaluates when given no run or checkpoint."""
+INTERFACE_KEYS = (
+    "action_mode",
+    "max_tilt_deg",
+    "max_slew_deg_s",
+    "observation_extras",
+    "history_length",
+    "max_steps",
+    "dtype",
+)
+"""Environment keys a learned policy keeps from its own training config; the scenario sets the rest."""
+
+
+@dataclass
+class LearnedPolicy:
+    """A trained actor with its label and the training config found next to its file (if any)."""
+
+    label: str
+    file: PolicyFile
+    config: DictConfig | None
+
+    @property
+    def path(self) -> Path:
+        return self.file.path
+
+    def interface(self, scenario_env: Mapping) -> dict:
+        """The environment keys this policy was trained with (the scenario's where no config exists)."""
+        source = OmegaConf.to_container(self.config.env, resolve=True) if self.config else scenario_env
+        return {key: source[key] for key in INTERFACE_KEYS if key in source}
+
+    def actor(self, actor_cfg: DictConfig, observation_size: int):
+        """The actor network (CPU, eval mode): its training config's shape, else ``actor_cfg``'s."""
+        network = self.config.actor if self.config else actor_cfg
+        return self.file.actor(network.hidden, network.activation, observation_size)
+
+
+def load_policy(path: str | Path, label: str | None = None) -> LearnedPolicy:
+    """Read a policy file or training checkpoint and its config; raises :class:`CheckpointError`."""
+    file = read_policy(path)
+    config_path = find_config(file.path)
+    config = OmegaConf.load(config_path) if config_path else None
+    return LearnedPolicy(label=label or _default_label(file.path, config), file=file, config=config)
+
+
+def find_config(checkpoint: Path) -> Path | None:
+    """The training config of a checkpoint: ``NAME.yaml`` beside a policy file, or the run's config.yaml."""
+    for candidate in (
+        checkpoint.with_suffix(".yaml"),
+        checkpoint.parent / "config.yaml",
+        checkpoint.parent.parent / "config.yaml",
+    ):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def checkpoint_sources(cfg: DictConfig, root: Path = Path(".")) -> list[Path]:
+    """Checkpoint files named by ``run`` (run directories, or ``latest``) and ``checkpoint``; else the shipped one."""
+    sources = []
+    for run in as_list(cfg.run):
+        run_dir = latest_run(root) if run == "latest" else Path(run)
+        if not run_dir.is_dir():
+            raise CheckpointError(f"run = {run!r} is not a run directory")
+        sources.append(run_dir / "checkpoints" / "last.pt")
+    sources += [Path(p) for p in as_list(cfg.checkpoint)]
+    return sources or [SHIPPED_POLICY]
+
+
+def latest_run(root: Path = Path(".")) -> Path:
+    """The run under ``outputs/train`` whose checkpoint was written last (``run=latest``)."""
+    checkpoints = sorted((root / "outputs" / "train").glob("*/*/checkpoints/last.pt"), key=lambda p: p.stat().st_mtime)
+    if not checkpoints:
+        raise CheckpointError(f"run = 'latest': no run with checkpoints/last.pt under {root / 'outputs' / 'train'}")
+    return checkpoints[-1].parent.parent
+
+
+def as_list(value) -> list[str]:
+    """A config value that may be null, one item or a list, as a list of strings."""
+    if value is None:
+        return []
+    if isinstance(value, ListConfig | list | tuple):
+        return [str(v) for v in value]
+    return [str(value)]
+
+
+def _default_label(path: Path, config: DictConfig | None) -> str:
+    agent = config.agent.name if config is not None and "agent" in config else "policy"
+    if path.resolve() == SHIPPED_POLICY:
+        return f"{agent} (shipped)"
+    run_dir = path.parent.parent if path.parent.name == "checkpoints" else path.parent
+    return f"{agent} {run_dir.name}"

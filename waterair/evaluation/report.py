@@ -1,0 +1,127 @@
+"""What an evaluation writes: metrics.json, metrics.csv, the figures and report.md (docs/evaluation.md)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from waterair.core.files import atomic_write_csv, atomic_write_text
+from waterair.evaluation import plots
+from waterair.evaluation.figures import physics_figures
+from waterair.evaluation.metrics import METRICS
+from waterair.evaluation.runner import UPPER_BOUND, Evaluation
+
+SCHEMA_VERSION = 1
+ROW_KEYS = (
+    "scenario",
+    "wind",
+    "offset_ratio",
+    "policy",
+    "kind",
+    *(f"{name}{suffix}" for name in METRICS for suffix in ("", "_lo", "_hi")),
+    "reference_gain",
+    "realisations",
+    "steps",
+    "seed",
+)
+"""Columns of metrics.csv and the keys of every ``rows`` entry of metrics.json (docs/results.md)."""
+
+
+def write_outputs(result: Evaluation, out: Path, cfg: DictConfig, physics: bool = True) -> list[Path]:
+    """metrics.json, metrics.csv, every figure and report.md in ``out``; returns the files written."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    written = [_write_json(result, out / "metrics.json", cfg), _write_csv(result, out / "metrics.csv")]
+    figures = plots.evaluation_figures(result, out)
+    if physics:
+        figures += physics_figures(out, result.env.sea())
+    written += figures
+    written.append(_write_report(result, out / "report.md", figures))
+    return written
+
+
+def _write_json(result: Evaluation, path: Path, cfg: DictConfig) -> Path:
+    data = {
+        "schema_version": SCHEMA_VERSION,
+        "device": result.device,
+        "seconds": round(result.seconds, 2),
+        "bootstrap": OmegaConf.to_container(cfg.bootstrap, resolve=True),
+        "policies": result.policies,
+        "scenarios": [
+            {
+                "name": s.name,
+                "title": s.title,
+                "axis": s.axis,
+                "points": [{"wind": w, "offset_ratio": o} for w, o in s.points],
+                "realisations": s.realisations,
+                "steps": s.steps,
+                "seed": s.seed,
+                "dt": result.dt,
+            }
+            for s in result.scenarios
+        ],
+        "rows": [{key: row[key] for key in ROW_KEYS} for row in result.rows],
+    }
+    return atomic_write_text(path, json.dumps(data, indent=2, allow_nan=True))
+
+
+def _write_csv(result: Evaluation, path: Path) -> Path:
+    return atomic_write_csv(path, ROW_KEYS, result.rows)
+
+
+def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
+    lines = ["# waterair evaluation", ""]
+    lines += [f"Device {result.device}, {result.seconds:.0f} s. Policies:", ""]
+    for policy in result.policies:
+        if policy["kind"] == "learned":
+            trained = ", ".join(f"{k} = {v}" for k, v in policy["trained_on"].items()) or "config not found"
+            lines.append(f"- **{policy['label']}**: `{policy['source']}`, {policy['frames']} frames ({trained})")
+    lines += [
+        f"- baselines: {', '.join(p['label'] for p in result.policies if p['kind'] == 'baseline')}",
+        f"- `{UPPER_BOUND}`: both ends along the exact current path (docs/model.md §4)",
+        "",
+        "Ratios are mean(G) / mean(G_UB); σ²_diff = var(G_UB − G) in m⁻⁴; outage is P(G < 0.1 G_0). Brackets "
+        "are 95 % bootstrap intervals over sea realisations. σ²_diff alone rewards a policy that receives "
+        "nothing (then it is var(G_UB)): read it next to the ratio.",
+        "",
+    ]
+    for scenario in result.scenarios:
+        lines += [f"## {scenario.title}", ""]
+        seconds = scenario.steps * result.dt
+        lines += [
+            f"{scenario.realisations} sea realisations × {scenario.steps} steps ({seconds:g} s), "
+            f"seed {scenario.seed}; every policy on the same seas.",
+            "",
+        ]
+        if scenario.axis is None:
+            wind, offset = scenario.points[0]
+            lines += [
+                "| policy | mean G (m⁻²) | ratio to UB | σ²_diff (m⁻⁴) | outage | valid paths |",
+                "|---|---|---|---|---|---|",
+            ]
+            for policy in result.policies:
+                r = result.row(scenario.name, policy["label"], wind, offset)
+                lines.append(
+                    f"| {policy['label']} | {r['mean_gain']:.4g} [{r['mean_gain_lo']:.4g}, {r['mean_gain_hi']:.4g}] "
+                    f"| {r['ratio_to_ub']:.3f} | {r['sigma2_diff']:.3g} | {r['outage']:.2%} | {r['valid_share']:.1%} |"
+                )
+        else:
+            column = "offset" if scenario.axis == "offset_ratio" else "U10 (m/s)"
+            values = [o if scenario.axis == "offset_ratio" else w for w, o in scenario.points]
+            labels = [p["label"] for p in result.policies]
+            lines += ["Ratio to the upper bound (σ²_diff in m⁻⁴ below it):", ""]
+            lines += [f"| {column} | " + " | ".join(labels) + " |", "|---" * (len(labels) + 1) + "|"]
+            for (wind, offset), value in zip(scenario.points, values, strict=True):
+                cells = []
+                for label in labels:
+                    r = result.row(scenario.name, label, wind, offset)
+                    cells.append(f"{r['ratio_to_ub']:.3f}<br>{r['sigma2_diff']:.2g}")
+                shown = f"{value:.0%}" if scenario.axis == "offset_ratio" else f"{value:g}"
+                lines.append(f"| {shown} | " + " | ".join(cells) + " |")
+        lines.append("")
+    lines += ["## Figures", ""]
+    for figure in figures:
+        lines += [f"![{figure.stem}]({figure.name})", ""]
+    return atomic_write_text(path, "\n".join(lines))

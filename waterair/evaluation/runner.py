@@ -1,0 +1,305 @@
+"""Runs policies, baselines and the upper bound on the scenarios, every policy on the same seas.
+
+:func:`evaluate` does the work of ``evaluate.py`` and returns an :class:`Evaluation` (rows of
+metrics and the gain traces) that :mod:`waterair.evaluation.report` writes out. Each rollout seeds
+its environment with the scenario's seed, a scenario's points run as one batch of
+``points × realisations`` links (``env.wind_values`` / ``env.offset_values``), and the policies
+that share an environment interface run side by side as replicas of one environment with
+identical seas. :func:`compare_policies` is the same measurement for one point, as training's
+closing evaluation uses it.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import torch
+from omegaconf import DictConfig, OmegaConf
+from tensordict.nn import TensorDictModuleBase
+from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+from waterair.core.devices import resolve_device
+from waterair.core.validation import check_int, check_range
+from waterair.envs.baselines import BASELINES
+from waterair.envs.config import EnvConfig
+from waterair.envs.env import WaterAirEnv
+from waterair.evaluation.metrics import scenario_metrics
+from waterair.evaluation.policies import INTERFACE_KEYS, LearnedPolicy, as_list, checkpoint_sources, load_policy
+from waterair.evaluation.scenarios import Scenario, scenarios_from_config
+
+UPPER_BOUND = "upper_bound"
+TRACE_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid")
+
+
+@dataclass(frozen=True)
+class Bootstrap:
+    """Confidence intervals: a seeded percentile bootstrap over sea realisations."""
+
+    level: float = 0.95
+    resamples: int = 2000
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        check_range("bootstrap.level", self.level, 0.0, 1.0, low_open=True, high_open=True)
+        check_int("bootstrap.resamples", self.resamples, 10, 10**6)
+        check_int("bootstrap.seed", self.seed, 0, 2**63 - 1)
+
+
+@dataclass
+class Evaluation:
+    """Everything an evaluation measured: one row per (scenario, point, policy), and the gain traces."""
+
+    scenarios: list[Scenario]
+    policies: list[dict]  # label, kind, and for learned policies source/frames/trained env
+    rows: list[dict] = field(default_factory=list)
+    traces: dict[str, dict[str, dict[str, torch.Tensor]]] = field(default_factory=dict)
+    """scenario → policy → ``gain`` / ``gain_upper_bound`` traces ``[R, P, T]``."""
+    env: EnvConfig = field(default_factory=EnvConfig)  # the scenario physics (sea, geometry, dt, device)
+    seconds: float = 0.0
+
+    @property
+    def dt(self) -> float:
+        return self.env.dt
+
+    @property
+    def device(self) -> str:
+        return self.env.device
+
+    def row(self, scenario: str, policy: str, wind: float, offset: float) -> dict:
+        for row in self.rows:
+            if (row["scenario"], row["policy"], row["wind"], row["offset_ratio"]) == (scenario, policy, wind, offset):
+                return row
+        raise KeyError((scenario, policy, wind, offset))
+
+
+def compare_policies(
+    env_config: EnvConfig, policies: Mapping[str, object], scenario: Scenario, bootstrap: Bootstrap = Bootstrap()
+) -> dict[str, dict[str, float]]:
+    """Metrics of ``policies`` (label → actor or baseline name) on the first point of ``scenario``, same seas.
+
+    The upper bound is included as ``upper_bound``.
+    """
+    runs = rollout_policies(
+        env_config, list(policies.items()), scenario.points[:1], scenario.realisations, scenario.steps, scenario.seed
+    )
+    first = next(iter(runs.values()))
+    runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
+    return {label: _point_metrics(t, 0, bootstrap) for label, t in runs.items()}
+
+
+def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, progress=print) -> Evaluation:
+    """Run every policy, every baseline and the upper bound on every scenario of ``cfg``.
+
+    ``policies`` defaults to the checkpoints ``cfg`` names. All checks (config values, checkpoint
+    files, observation sizes) happen before the first rollout.
+    """
+    clock = time.perf_counter()
+    scenarios = scenarios_from_config(cfg)
+    bootstrap = Bootstrap(**OmegaConf.to_container(cfg.bootstrap, resolve=True))
+    device = resolve_device(cfg.device)
+    base = EnvConfig.from_mapping({**OmegaConf.to_container(cfg.env, resolve=True), "device": str(device)})
+    scenario_env = {key: getattr(base, key) for key in INTERFACE_KEYS}
+    unknown = [name for name in as_list(cfg.baselines) if name not in BASELINES]
+    if unknown:
+        raise ValueError(f"baselines = {unknown[0]!r} is not a baseline; choose from {', '.join(BASELINES)}")
+    if policies is None:
+        labels = as_list(cfg.get("labels"))
+        sources = checkpoint_sources(cfg)
+        if labels and len(labels) != len(sources):
+            raise ValueError(f"labels has {len(labels)} entries for {len(sources)} checkpoints")
+        policies = [load_policy(p, labels[i] if labels else None) for i, p in enumerate(sources)]
+    _unique_labels(policies)
+
+    # Per learned policy: its environment interface and its actor (checked now, before any rollout)
+    learned = []
+    for policy in policies:
+        env_config = base.replace(**policy.interface(scenario_env))
+        learned.append((policy, env_config, policy.actor(cfg.actor, env_config.observation_size).to(device)))
+    for scenario in scenarios:
+        for policy, env_config, _ in [(None, base, None), *learned]:
+            if scenario.steps > env_config.max_steps:
+                owner = f"{policy.label}'s" if policy else "the scenario's"
+                raise ValueError(
+                    f"scenarios.{scenario.name}.steps = {scenario.steps} is out of range; allowed [1, "
+                    f"{env_config.max_steps}] ({owner} env.max_steps: a longer rollout would restart the seas)"
+                )
+
+    result = Evaluation(
+        scenarios=scenarios,
+        policies=[{"label": UPPER_BOUND, "kind": "bound"}]
+        + [_describe(policy, base) for policy in policies]
+        + [{"label": name, "kind": "baseline"} for name in as_list(cfg.baselines)],
+        env=base,
+    )
+    # Scenarios with the same realisations, steps and seed run as one batch over the union of their
+    # points; within it, every group of policies sharing an interface runs as replicas of one env.
+    groups = _policy_groups(base, as_list(cfg.baselines), learned, together=cfg.get("batch_policies", True))
+    for batch in _batches(scenarios):
+        points = list(dict.fromkeys(p for s in batch for p in s.points))
+        first = batch[0]
+        runs = {}
+        for env_config, members in groups:
+            runs.update(rollout_policies(env_config, members, points, first.realisations, first.steps, first.seed))
+            names = ", ".join(label for label, _ in members)
+            progress(f"{'+'.join(s.name for s in batch)}: {names} done ({time.perf_counter() - clock:.0f} s)")
+        for scenario in batch:
+            index = torch.tensor([points.index(p) for p in scenario.points])
+            selected = {label: {k: v[:, index] for k, v in t.items()} for label, t in runs.items()}
+            _collect(result, scenario, selected, bootstrap)
+    result.seconds = time.perf_counter() - clock
+    return result
+
+
+def _batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
+    batches: dict[tuple[int, int, int], list[Scenario]] = {}
+    for scenario in scenarios:
+        batches.setdefault((scenario.realisations, scenario.steps, scenario.seed), []).append(scenario)
+    return list(batches.values())
+
+
+def _policy_groups(base: EnvConfig, baselines: list[str], learned, together: bool = True) -> list[tuple]:
+    """(env config, [(label, policy or baseline name)]) per distinct interface; baselines use the scenario's.
+
+    ``together=False`` gives every policy its own group (own rollout): slower, less memory.
+    """
+    if not together:
+        return [(base, [(name, name)]) for name in baselines] + [(c, [(p.label, a)]) for p, c, a in learned]
+    groups: list[tuple[EnvConfig, list]] = []
+    if baselines:
+        groups.append((base, [(name, name) for name in baselines]))
+    for policy, env_config, actor in learned:
+        match = next((members for config, members in groups if config == env_config), None)
+        if match is None:
+            groups.append((env_config, match := []))
+        match.append((policy.label, actor))
+    return groups
+
+
+class PolicySplit(TensorDictModuleBase):
+    """K policies side by side: policy k acts on rows ``[k·size, (k+1)·size)`` of the batch."""
+
+    out_keys = ["action"]
+
+    def __init__(self, policies: Sequence[TensorDictModuleBase], size: int):
+        super().__init__()
+        self.policies = torch.nn.ModuleList(policies)
+        self.size = size
+        self.in_keys = list(dict.fromkeys(key for p in policies for key in p.in_keys))
+
+    def forward(self, tensordict):
+        actions = [
+            policy(tensordict[k * self.size : (k + 1) * self.size].select(*policy.in_keys))["action"]
+            for k, policy in enumerate(self.policies)
+        ]
+        tensordict.set("action", torch.cat(actions, dim=0))
+        return tensordict
+
+
+def rollout_policies(env_config: EnvConfig, members, points, realisations: int, steps: int, seed: int) -> dict:
+    """Traces ``[R, P, T]`` (CPU) per member ``(label, policy or baseline name)``, all on the same seas.
+
+    The members run as replicas of one environment seeded with ``seed``, greedily (no exploration
+    noise), over ``points`` (wind m/s, offset ratio) × ``realisations`` links for ``steps`` steps.
+    """
+    links = len(points) * realisations
+    winds, offsets = zip(*points, strict=True)
+    env = WaterAirEnv(
+        env_config.replace(
+            num_envs=links * len(members),
+            replicas=len(members),
+            wind_values=winds,
+            offset_values=offsets,
+            wind_range=None,
+            offset_range=None,
+        )
+    )
+    policies = [BASELINES[policy](env) if isinstance(policy, str) else policy for _, policy in members]
+    env.set_seed(seed)
+    with set_exploration_type(ExplorationType.DETERMINISTIC), torch.no_grad():
+        rollout = env.rollout(steps, PolicySplit(policies, links), break_when_any_done=False)
+    # row = k·links + r·P + p: policy k, realisation r, point p
+    shape = (len(members), realisations, len(points), steps)
+    traces = {key: rollout["next", key].cpu().reshape(shape) for key in TRACE_KEYS}
+    reference = env.reference_gain.cpu().reshape(shape[:3])
+    return {
+        label: {**{key: value[k] for key, value in traces.items()}, "reference_gain": reference[k]}
+        for k, (label, _) in enumerate(members)
+    }
+
+
+def _collect(result: Evaluation, scenario: Scenario, runs: dict[str, dict], bootstrap: Bootstrap) -> None:
+    """Metrics rows for every point and policy (the upper bound first), and the traces."""
+    first = next(iter(runs.values()))
+    runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
+    kinds = {p["label"]: p["kind"] for p in result.policies}
+    for index, (wind, offset) in enumerate(scenario.points):
+        for label in kinds:
+            t = runs[label]
+            result.rows.append(
+                {
+                    "scenario": scenario.name,
+                    "wind": wind,
+                    "offset_ratio": offset,
+                    "policy": label,
+                    "kind": kinds[label],
+                    **_point_metrics(t, index, bootstrap),
+                    "reference_gain": t["reference_gain"][:, index].double().mean().item(),
+                    "realisations": scenario.realisations,
+                    "steps": scenario.steps,
+                    "seed": scenario.seed,
+                }
+            )
+    result.traces[scenario.name] = {
+        label: {"gain": runs[label]["gain"], "gain_upper_bound": runs[label]["gain_upper_bound"]} for label in kinds
+    }
+
+
+def _point_metrics(traces: dict[str, torch.Tensor], index: int, bootstrap: Bootstrap) -> dict[str, float]:
+    """Every metric of point ``index`` of one policy's traces ``[R, P, T]``."""
+    return scenario_metrics(
+        traces["gain"][:, index],
+        traces["gain_upper_bound"][:, index],
+        traces["reference_gain"][:, index],
+        traces["path_valid"][:, index],
+        level=bootstrap.level,
+        resamples=bootstrap.resamples,
+        seed=bootstrap.seed,
+    )
+
+
+def _describe(policy: LearnedPolicy, base: EnvConfig) -> dict:
+    trained = OmegaConf.to_container(policy.config, resolve=True) if policy.config else {}
+    env = trained.get("env", {})
+    keys = ("wind", "fetch", "offset_ratio", "wind_range", "offset_range")
+    differs = {k: v for k, v in env.items() if k in keys and v is not None}
+    return {
+        "label": policy.label,
+        "kind": "learned",
+        "source": _shown(policy.path),
+        "frames": policy.file.frames,
+        "agent": trained.get("agent", {}).get("name"),
+        "trained_on": differs,
+        "observation_size": policy.file.observation_size,
+    }
+
+
+def _shown(path: Path) -> str:
+    """``path`` relative to the working directory when it lies inside it (reports stay portable)."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
+def _unique_labels(policies: Sequence[LearnedPolicy]) -> None:
+    seen: dict[str, int] = {}
+    for policy in policies:
+        if policy.label in BASELINES or policy.label == UPPER_BOUND:
+            policy.label = f"{policy.label} (learned)"
+        count = seen.get(policy.label, 0)
+        seen[policy.label] = count + 1
+        if count:
+            policy.label = f"{policy.label} #{count + 1}"

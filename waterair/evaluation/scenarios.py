@@ -1,0 +1,66 @@
+"""Evaluation scenarios S1-S3 (docs/evaluation.md): which (wind, offset) points, how many seas, how long.
+
+* S1: a time trace at one point (the paper's "gain over time").
+* S2: a horizontal-offset sweep (the paper's "average gain" and "σ²_diff").
+* S3: a wind sweep (the paper's planned study).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from omegaconf import DictConfig, ListConfig
+
+from waterair.core.validation import check_int, check_range
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One evaluation scenario: points (wind m/s, offset ratio), each over the same realisations."""
+
+    name: str
+    title: str
+    axis: str | None  # the swept quantity ("offset_ratio" or "wind"); None for the S1 time trace
+    points: tuple[tuple[float, float], ...]
+    realisations: int
+    steps: int
+    seed: int
+
+
+def scenarios_from_config(cfg: DictConfig) -> list[Scenario]:
+    """S1 (time trace), S2 (offset sweep) and S3 (wind sweep) from ``cfg.scenarios``; null skips one."""
+    spec, out = cfg.scenarios, []
+
+    def common(name):
+        s = spec[name]
+        return (
+            check_int(f"scenarios.{name}.realisations", s.realisations, 1, 1 << 20),
+            check_int(f"scenarios.{name}.steps", s.steps, 1, 10**7),
+            check_int(f"scenarios.{name}.seed", s.seed, 0, 2**63 - 1),
+        )
+
+    if spec.get("S1") is not None:
+        wind = check_range("scenarios.S1.wind", spec.S1.wind, 0.0, 60.0, low_open=True, unit="m/s")
+        offset = check_range("scenarios.S1.offset_ratio", spec.S1.offset_ratio, 0.0, 10.0)
+        title = f"S1: gain over time, U10 = {wind:g} m/s, offset {offset:.0%}"
+        out.append(Scenario("S1", title, None, ((wind, offset),), *common("S1")))
+    if spec.get("S2") is not None:
+        wind = check_range("scenarios.S2.wind", spec.S2.wind, 0.0, 60.0, low_open=True, unit="m/s")
+        offsets = _grid("scenarios.S2.offset_ratios", spec.S2.offset_ratios, 0.0, 10.0, "")
+        title = f"S2: horizontal offset sweep, U10 = {wind:g} m/s"
+        out.append(Scenario("S2", title, "offset_ratio", tuple((wind, o) for o in offsets), *common("S2")))
+    if spec.get("S3") is not None:
+        offset = check_range("scenarios.S3.offset_ratio", spec.S3.offset_ratio, 0.0, 10.0)
+        winds = _grid("scenarios.S3.winds", spec.S3.winds, 0.0, 60.0, "m/s", low_open=True)
+        title = f"S3: wind sweep, offset {offset:.0%}"
+        out.append(Scenario("S3", title, "wind", tuple((w, offset) for w in winds), *common("S3")))
+    if not out:
+        raise ValueError("scenarios: every scenario is null; nothing to evaluate")
+    return out
+
+
+def _grid(key: str, values, low: float, high: float, unit: str, low_open: bool = False) -> tuple[float, ...]:
+    values = list(values) if isinstance(values, ListConfig | list | tuple) else [values]
+    if not values:
+        raise ValueError(f"{key} = [] must list at least one value")
+    return tuple(check_range(f"{key}[{i}]", v, low, high, low_open=low_open, unit=unit) for i, v in enumerate(values))

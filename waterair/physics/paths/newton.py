@@ -1,0 +1,198 @@
+"""Newton's method on Fermat's principle for the refracted path (docs/model.md §3, solver 1).
+
+The received ray refracts at a surface point P = (x, y, η(x, y, t)). P is a stationary point (for
+the primary path, a minimum) of the optical path length
+
+    L(x, y) = n_w |P − T| + n_a |R − P|,
+
+and ∇L = 0 is exactly Snell's law about the local normal. The solver is damped Newton on ∇L = 0
+with the analytic surface derivatives, an Armijo backtracking line search on L and a
+positive-definite shift where the Hessian is not.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import torch
+
+from waterair.core.validation import check_int, check_range
+from waterair.physics.paths.solution import PathSolution, finish_path
+from waterair.physics.surface import harmonic_sums
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    """Settings of the Newton solver.
+
+    Attributes:
+        max_iter: iteration cap (cold starts need ~5, warm starts 1-3).
+        tol: convergence threshold on |∇L| (dimensionless); None picks 1e-11 for float64 and
+            2e-5 for float32 (float32 phases of ω t ≈ 250 rad carry ~1e-5 rad of rounding).
+        armijo: sufficient-decrease constant of the line search.
+        max_backtracks: step halvings tried before a step is taken anyway.
+        max_step: damping: the longest horizontal Newton step (m).
+    """
+
+    max_iter: int = 40
+    tol: float | None = None
+    armijo: float = 1e-4
+    max_backtracks: int = 10
+    max_step: float = 2.0
+
+    def __post_init__(self) -> None:
+        check_int("max_iter", self.max_iter, 1, 10_000)
+        if self.tol is not None:
+            check_range("tol", self.tol, 0.0, 1.0, low_open=True)
+        check_range("armijo", self.armijo, 0.0, 0.5, low_open=True, high_open=True)
+        check_int("max_backtracks", self.max_backtracks, 0, 60)
+        check_range("max_step", self.max_step, 0.0, low_open=True, unit="m")
+
+
+@dataclass
+class _Fermat:
+    """L, ∇L, ∇²L and the geometry at a batch of surface points (all leading shape ``[m]``)."""
+
+    length: torch.Tensor
+    grad: torch.Tensor
+    hess: torch.Tensor
+    point: torch.Tensor
+    slope: torch.Tensor
+
+    def select(self, index: torch.Tensor) -> _Fermat:
+        return _Fermat(*(getattr(self, f)[index] for f in ("length", "grad", "hess", "point", "slope")))
+
+    def assign(self, index: torch.Tensor, other: _Fermat) -> None:
+        for f in ("length", "grad", "hess", "point", "slope"):
+            getattr(self, f)[index] = getattr(other, f)
+
+
+def _fermat(surface, xy, t, tx, rx, n_w, n_a, compiled: bool) -> _Fermat:
+    """L, ∇L and ∇²L at surface points ``xy`` ``[m, 2]`` (see :func:`fermat_terms`)."""
+    time = torch.as_tensor(t, dtype=xy.dtype, device=xy.device).expand(xy.shape[0]).contiguous()
+    inputs = (surface.omega, surface.phase, surface.kx, surface.ky, surface.amplitude, xy, time, tx, rx)
+    if not compiled:
+        return _Fermat(*fermat_terms(*inputs, n_w, n_a))
+    if xy.shape[0] == 1:
+        # torch.compile specialises size 1: a lone row would compile a second graph (~1 s) the
+        # first time a working set shrinks to it. Evaluate it twice instead and keep one.
+        doubled = tuple(v.expand(2, *v.shape[1:]).contiguous() for v in inputs)
+        return _Fermat(*(v[:1] for v in _compiled_fermat()(*doubled, n_w, n_a)))
+    return _Fermat(*_compiled_fermat()(*inputs, n_w, n_a))
+
+
+def fermat_terms(omega, phase, kx, ky, amplitude, xy, t, tx, rx, n_w: float, n_a: float):
+    """Evaluate L(x, y), its gradient and Hessian (docs/model.md §3) in closed form.
+
+    With u1 = (P − T)/r1, u2 = (R − P)/r2, w = n_w u1 − n_a u2 and the tangents P_x = (1, 0, η_x),
+    P_y = (0, 1, η_y):  ∂L/∂a = w · P_a,  ∂²L/∂a∂b = Σ_i (n_i/r_i)[P_a·P_b − (u_i·P_a)(u_i·P_b)]
+    + w_z η_ab. A pure tensor function (surface components ``[m, K]``, ``xy`` ``[m, 2]``, ``t``
+    ``[m]``, ``tx``/``rx`` ``[m, 3]``), so that ``torch.compile`` can fuse the surface sums and
+    this algebra into one kernel. Returns (L, ∇L ``[m, 2]``, (L_xx, L_xy, L_yy) ``[m, 3]``,
+    P ``[m, 3]``, (η_x, η_y) ``[m, 2]``).
+    """
+    sums = harmonic_sums(omega, phase, kx, ky, amplitude, xy[:, :1], xy[:, 1:], t, 2)
+    eta, dx, dy, dxx, dxy, dyy = (v.squeeze(-1) for v in sums)
+    point = torch.stack((xy[:, 0], xy[:, 1], eta), dim=-1)
+    d1, d2 = point - tx, rx - point
+    r1, r2 = torch.linalg.vector_norm(d1, dim=-1), torch.linalg.vector_norm(d2, dim=-1)
+    u1, u2 = d1 / r1.unsqueeze(-1), d2 / r2.unsqueeze(-1)
+    w = n_w * u1 - n_a * u2
+    grad = torch.stack((w[:, 0] + w[:, 2] * dx, w[:, 1] + w[:, 2] * dy), dim=-1)
+    u1a, u1b = u1[:, 0] + u1[:, 2] * dx, u1[:, 1] + u1[:, 2] * dy
+    u2a, u2b = u2[:, 0] + u2[:, 2] * dx, u2[:, 1] + u2[:, 2] * dy
+    c1, c2 = n_w / r1, n_a / r2
+    hxx = c1 * (1 + dx**2 - u1a**2) + c2 * (1 + dx**2 - u2a**2) + w[:, 2] * dxx
+    hxy = c1 * (dx * dy - u1a * u1b) + c2 * (dx * dy - u2a * u2b) + w[:, 2] * dxy
+    hyy = c1 * (1 + dy**2 - u1b**2) + c2 * (1 + dy**2 - u2b**2) + w[:, 2] * dyy
+    hess = torch.stack((hxx, hxy, hyy), dim=-1)
+    return n_w * r1 + n_a * r2, grad, hess, point, torch.stack((dx, dy), dim=-1)
+
+
+@functools.cache
+def _compiled_fermat():
+    return torch.compile(fermat_terms, dynamic=True)
+
+
+def _newton_step(ev: _Fermat, tx, rx, n_w, n_a, max_step: float) -> torch.Tensor:
+    """Newton direction on a Hessian shifted to be positive definite, capped at ``max_step`` (m)."""
+    hxx, hxy, hyy = ev.hess.unbind(-1)
+    r1 = torch.linalg.vector_norm(ev.point - tx, dim=-1)
+    r2 = torch.linalg.vector_norm(rx - ev.point, dim=-1)
+    floor = 1e-2 * (n_w / r1 + n_a / r2)  # a tenth-order fraction of the flat-sea curvature
+    half_trace = 0.5 * (hxx + hyy)
+    lam_min = half_trace - torch.sqrt((0.5 * (hxx - hyy)) ** 2 + hxy**2)
+    shift = (floor - lam_min).clamp(min=0.0)
+    a, c = hxx + shift, hyy + shift
+    det = a * c - hxy**2
+    gx, gy = ev.grad.unbind(-1)
+    step = -torch.stack((c * gx - hxy * gy, a * gy - hxy * gx), dim=-1) / det.unsqueeze(-1)
+    length = torch.linalg.vector_norm(step, dim=-1, keepdim=True)
+    return step * (max_step / length.clamp(min=max_step))
+
+
+def solve_newton(surface, tx, rx, t, init, n_w, n_a, opts: NewtonOptions, compiled: bool = False) -> PathSolution:
+    """The primary path from the start points ``init`` ``[B, 2]`` (m); see :func:`waterair.physics.paths.solve_path`."""
+    batch, dtype = tx.shape[0], tx.dtype
+    tol = opts.tol if opts.tol is not None else (1e-11 if dtype == torch.float64 else 2e-5)
+    eps = torch.finfo(dtype).eps
+    t_all = t if isinstance(t, torch.Tensor) and t.dim() > 0 else None
+
+    start = init.to(dtype).contiguous()
+    ev = _fermat(surface, start, t, tx, rx, n_w, n_a, compiled)
+    iterations = torch.zeros(batch, dtype=torch.int64, device=tx.device)
+    done = torch.linalg.vector_norm(ev.grad, dim=-1) < tol
+
+    # Working set: the rows still iterating. It is compacted (one gather of the surface) only when
+    # it has shrunk 8×, so the gather cost stays below the evaluation cost it saves.
+    rows = torch.arange(batch, device=tx.device)
+    ws_surface, ws_tx, ws_rx, ws_t = surface, tx, rx, t
+    ws_rows, ws_xy, ws_ev, ws_done = rows, start, ev, done.clone()
+    for _ in range(opts.max_iter):
+        todo = ~ws_done
+        count = int(todo.sum())
+        if count == 0:
+            break
+        if count * 8 <= ws_rows.numel():
+            keep = todo.nonzero().squeeze(-1)
+            ws_surface, ws_tx, ws_rx = ws_surface[keep], ws_tx[keep], ws_rx[keep]
+            ws_rows, ws_xy, ws_ev = ws_rows[keep], ws_xy[keep], ws_ev.select(keep)
+            ws_t = t_all[ws_rows] if t_all is not None else t
+            todo = torch.ones(count, dtype=torch.bool, device=tx.device)
+
+        step = _newton_step(ws_ev, ws_tx, ws_rx, n_w, n_a, opts.max_step) * todo.unsqueeze(-1)
+        slope = (ws_ev.grad * step).sum(-1)
+        fraction = torch.ones_like(slope)
+        trial = _fermat(ws_surface, ws_xy + step, ws_t, ws_tx, ws_rx, n_w, n_a, compiled)
+        # Below the rounding level of L the decrease test is meaningless: take the step.
+        negligible = -slope <= 16 * eps * ws_ev.length
+        accepted = ~todo | negligible | (trial.length <= ws_ev.length + opts.armijo * slope)
+        for _ in range(opts.max_backtracks):
+            redo = (~accepted).nonzero().squeeze(-1)
+            if redo.numel() == 0:
+                break
+            fraction[redo] *= 0.5
+            sub_t = ws_t[redo] if isinstance(ws_t, torch.Tensor) and ws_t.dim() > 0 else ws_t
+            part = _fermat(
+                ws_surface[redo],
+                ws_xy[redo] + fraction[redo, None] * step[redo],
+                sub_t,
+                ws_tx[redo],
+                ws_rx[redo],
+                n_w,
+                n_a,
+                compiled,
+            )
+            trial.assign(redo, part)
+            accepted[redo] = part.length <= ws_ev.length[redo] + opts.armijo * fraction[redo] * slope[redo]
+
+        # Rows already done took a zero step, so their trial evaluation is their current one.
+        ws_xy = ws_xy + fraction.unsqueeze(-1) * step
+        ws_ev = trial
+        iterations[ws_rows] += todo.long()
+        ws_done = torch.linalg.vector_norm(ws_ev.grad, dim=-1) < tol
+        done[ws_rows] = ws_done
+        ev.assign(ws_rows, ws_ev)
+
+    return finish_path(ev.point, ev.slope, tx, rx, done, iterations, n_w, n_a)

@@ -1,0 +1,87 @@
+"""The refracted path T → P → R as a result: :class:`PathSolution`, and the calm-sea point.
+
+Both solvers (:mod:`.newton`, :mod:`.centroid`) end in :func:`finish_path`, which turns a surface
+point into the path's directions, angles and lengths (docs/model.md §3) and flags invalid paths
+(no convergence, a ray meeting the surface from below its tangent plane, total internal
+reflection) with ``valid = False``; no output is ever NaN.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from tensordict import TensorClass
+
+from waterair.physics.optics import N_AIR, N_WATER, angle_between, critical_angle
+
+
+class PathSolution(TensorClass):
+    """The primary path for each batch element; every field has leading shape ``[B]``.
+
+    Fields: ``point`` P (m, ``[B, 3]``); ``departure`` u_d = (P − T)/|P − T| and ``arrival``
+    u_a = (R − P)/|R − P| (unit, ``[B, 3]``); ``normal`` the unit surface normal at P (``[B, 3]``);
+    ``theta1`` incidence angle in water and ``theta2`` refraction angle in air (rad);
+    ``d_water`` = |P − T| and ``d_air`` = |R − P| (m); ``valid`` (bool); ``iterations`` (int).
+    """
+
+    point: torch.Tensor
+    departure: torch.Tensor
+    arrival: torch.Tensor
+    normal: torch.Tensor
+    theta1: torch.Tensor
+    theta2: torch.Tensor
+    d_water: torch.Tensor
+    d_air: torch.Tensor
+    valid: torch.Tensor
+    iterations: torch.Tensor
+
+
+def flat_sea_point(tx: torch.Tensor, rx: torch.Tensor, n_water: float = N_WATER, n_air: float = N_AIR) -> torch.Tensor:
+    """Refraction point on the calm sea z = 0 between ``tx`` (below) and ``rx`` (above), ``[B, 3]`` (m).
+
+    Solves n_w sin θ1 = n_a sin θ2 along the horizontal segment from T to R by bisection
+    (the residual is monotone in the distance s from T), 60 halvings.
+    """
+    horizontal = rx[:, :2] - tx[:, :2]
+    distance = torch.linalg.vector_norm(horizontal, dim=-1)
+    depth, height = (-tx[:, 2]).clamp(min=0), rx[:, 2].clamp(min=0)
+    low, high = torch.zeros_like(distance), distance.clone()
+    for _ in range(60):
+        s = 0.5 * (low + high)
+        residual = n_water * s / torch.hypot(s, depth) - n_air * (distance - s) / torch.hypot(distance - s, height)
+        positive = residual > 0
+        high = torch.where(positive, s, high)
+        low = torch.where(positive, low, s)
+    s = 0.5 * (low + high)
+    direction = horizontal / distance.clamp(min=torch.finfo(tx.dtype).tiny).unsqueeze(-1)
+    xy = tx[:, :2] + s.unsqueeze(-1) * direction
+    return torch.cat((xy, torch.zeros_like(s).unsqueeze(-1)), dim=-1)
+
+
+def finish_path(point, slope, tx, rx, converged, iterations, n_w, n_a) -> PathSolution:
+    """Directions, angles and lengths of the path through ``point``; flags invalid paths."""
+    normal = torch.cat((-slope, torch.ones_like(slope[:, :1])), dim=-1)
+    normal = normal / torch.linalg.vector_norm(normal, dim=-1, keepdim=True)
+    d1, d2 = point - tx, rx - point
+    d_water, d_air = torch.linalg.vector_norm(d1, dim=-1), torch.linalg.vector_norm(d2, dim=-1)
+    departure, arrival = d1 / d_water.unsqueeze(-1), d2 / d_air.unsqueeze(-1)
+    theta1, theta2 = angle_between(departure, normal), angle_between(arrival, normal)
+    finite = torch.isfinite(point).all(-1) & torch.isfinite(normal).all(-1)
+    valid = converged & finite & (theta1 < critical_angle(n_w, n_a)) & (theta2 < math.pi / 2)
+    safe = finite.unsqueeze(-1)
+    up = torch.zeros_like(point)
+    up[:, 2] = 1.0
+    return PathSolution(
+        point=torch.where(safe, point, up * 0),
+        departure=torch.where(safe, departure, up),
+        arrival=torch.where(safe, arrival, up),
+        normal=torch.where(safe, normal, up),
+        theta1=torch.where(finite, theta1, torch.zeros_like(theta1)),
+        theta2=torch.where(finite, theta2, torch.zeros_like(theta2)),
+        d_water=torch.where(finite, d_water, torch.zeros_like(d_water)),
+        d_air=torch.where(finite, d_air, torch.zeros_like(d_air)),
+        valid=valid,
+        iterations=iterations,
+        batch_size=point.shape[:1],
+    )

@@ -1,0 +1,93 @@
+"""Validation of the composed training config, once, before any work (docs/training.md lists every key).
+
+Every error is a ``ValueError`` whose one-line message names the key, the value and the allowed
+range. Each option of a group is checked for exactly the keys it carries.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from waterair.agents.networks import ACTIVATIONS
+from waterair.core.devices import resolve_device
+from waterair.core.validation import check_choice, check_int, check_range
+from waterair.envs.config import EnvConfig
+from waterair.envs.rewards import Reward
+
+LOSSES = {"ddpg": "torchrl.objectives.DDPGLoss", "td3": "torchrl.objectives.TD3Loss"}
+"""The loss class each ``agent.name`` instantiates (``agent.loss._target_``)."""
+NOISES = ("gaussian", "ou")
+BUFFERS = ("memory", "memmap")
+NETWORKS = ("mlp",)
+
+# hydra.run.dir is ${run_dir_or:${resume},outputs/...}: a resumed run continues in its own folder.
+# (oc.select would not do: it keeps resume's explicit null.) Registered at import, before Hydra
+# composes the config.
+OmegaConf.register_new_resolver("run_dir_or", lambda run, default: default if run is None else run, replace=True)
+
+
+def validate(cfg: DictConfig) -> None:
+    """Check every key before any work; raise ``ValueError`` naming key, value and allowed range."""
+    EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
+    Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True))
+    resolve_device(cfg.device)  # cuda without a CUDA device is an error now, not after the set-up
+    check_int("seed", cfg.seed, 0, 2**63 - 1)
+    check_int("total_frames", cfg.total_frames, 1)
+    _check_agent(cfg.agent)
+    for net in ("actor", "critic"):
+        check_choice(f"{net}.name", cfg[net].name, NETWORKS)
+        check_range(f"{net}.lr", cfg[net].lr, 0.0, 1.0, low_open=True)
+        check_choice(f"{net}.activation", cfg[net].activation, ACTIVATIONS)
+        for width in cfg[net].hidden:
+            check_int(f"{net}.hidden", width, 1, 1 << 16)
+    check_choice("buffer.name", cfg.buffer.name, BUFFERS)
+    check_int("buffer.batch_size", cfg.buffer.batch_size, 1, 1 << 20)
+    check_int("buffer.capacity", cfg.buffer.capacity, cfg.buffer.batch_size)
+    _check_noise(cfg.noise)
+    _check_collector(cfg)
+    check_choice("logger.name", cfg.logger.name, ("tensorboard",))
+    check_int("checkpoint.every_frames", cfg.checkpoint.every_frames, 1)
+    check_int("eval.realisations", cfg.eval.realisations, 1)
+    check_int("eval.steps", cfg.eval.steps, 1, cfg.env.max_steps)
+    check_int("eval.seed", cfg.eval.seed, 0, 2**63 - 1)
+    if cfg.resume and not Path(cfg.resume).is_dir():
+        raise ValueError(f"resume = {cfg.resume!r} is not a run directory")
+
+
+def _check_agent(agent: DictConfig) -> None:
+    check_choice("agent.name", agent.name, LOSSES)
+    check_range("agent.gamma", agent.gamma, 0.0, 1.0, high_open=True)
+    check_range("agent.tau", agent.tau, 0.0, 1.0, low_open=True)
+    check_choice("agent.loss._target_", agent.loss._target_, (LOSSES[agent.name],))
+    if agent.name == "td3":
+        check_int("agent.policy_delay", agent.policy_delay, 1, 1000)
+        check_range("agent.loss.policy_noise", agent.loss.policy_noise, 0.0, 10.0)
+        check_range("agent.loss.noise_clip", agent.loss.noise_clip, 0.0, 10.0)
+
+
+def _check_noise(noise: DictConfig) -> None:
+    check_choice("noise.name", noise.name, NOISES)
+    check_range("noise.sigma_init", noise.sigma_init, 0.0, 10.0)
+    check_range("noise.sigma_end", noise.sigma_end, 0.0, noise.sigma_init)
+    check_int("noise.annealing_frames", noise.annealing_frames, 1)
+    if noise.name == "ou":
+        check_range("noise.theta", noise.theta, 0.0, 10.0)
+
+
+def _check_collector(cfg: DictConfig) -> None:
+    num_envs = cfg.env.num_envs
+    frames_per_batch = check_int("collector.frames_per_batch", cfg.collector.frames_per_batch, num_envs)
+    if frames_per_batch % num_envs:
+        raise ValueError(
+            f"collector.frames_per_batch = {frames_per_batch} is not allowed; it must be a multiple of "
+            f"env.num_envs = {num_envs}"
+        )
+    if cfg.total_frames % frames_per_batch:
+        raise ValueError(
+            f"total_frames = {cfg.total_frames} is not allowed; it must be a multiple of "
+            f"collector.frames_per_batch = {frames_per_batch} so that a run collects exactly that many frames"
+        )
+    check_int("collector.init_random_frames", cfg.collector.init_random_frames, 0)
+    check_range("collector.updates_per_frame", cfg.collector.updates_per_frame, 0.0, 64.0, low_open=True)

@@ -1,0 +1,163 @@
+"""DDPG / TD3 training of the beam-alignment agent from a Hydra config (docs/training.md).
+
+``train(cfg, run_dir)`` reads as the list of steps it takes; :mod:`waterair.training.builders`
+builds each piece from its config group. ``train.py`` is the thin Hydra entry point.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import torch
+from omegaconf import DictConfig, OmegaConf
+from tqdm import tqdm
+
+from waterair.core.devices import resolve_device
+from waterair.core.files import atomic_write_json, atomic_write_text
+from waterair.evaluation.metrics import METRICS, OUTAGE_FRACTION
+from waterair.evaluation.runner import compare_policies
+from waterair.evaluation.scenarios import Scenario
+from waterair.training.builders import (
+    TRANSITION_KEYS,
+    env_config,
+    make_actor,
+    make_buffer,
+    make_collector,
+    make_critic,
+    make_env,
+    make_exploration,
+    make_loss,
+    make_optimisers,
+    make_update,
+)
+from waterair.training.checkpoint import CHECKPOINT, Learner, Progress, load_checkpoint, save_checkpoint
+from waterair.training.config import validate
+from waterair.training.run_log import RunLog
+
+FINAL_POLICIES = {"straight_facing": "straight_facing", "flat_snell": "flat_snell"}
+"""Baselines the closing evaluation scores the trained agent against (label → baseline name)."""
+
+
+def train(cfg: DictConfig, run_dir: Path) -> dict[str, float]:
+    """Train from ``cfg`` into ``run_dir`` (resuming from its checkpoint if ``cfg.resume``); return final metrics."""
+    run_dir = Path(run_dir)
+    validate(cfg)
+    resumed = bool(cfg.resume) and (run_dir / CHECKPOINT).exists()
+    device = resolve_device(cfg.device)
+    torch.manual_seed(cfg.seed)
+    (run_dir / "checkpoints").mkdir(parents=True, exist_ok=True)
+    atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+
+    # Create the environment, agent, exploration, optimisers and replay buffer
+    env = make_env(cfg)
+    actor, critic = make_actor(cfg, env, device), make_critic(cfg, env, device)
+    loss, target_update = make_loss(cfg, actor, critic, env)
+    exploration, noise = make_exploration(cfg, actor, env, device)
+    optim_actor, optim_critic = make_optimisers(cfg, loss)
+    buffer = make_buffer(cfg, run_dir, device)
+    learner = Learner(
+        actor, loss, noise, optim_actor, optim_critic, env.base_env.rng, buffer, env.base_env.observation_size
+    )
+    progress = load_checkpoint(run_dir, learner, cfg.checkpoint.keep_buffer) if resumed else Progress()
+
+    # Create the collector, the update step and the logger
+    collector = make_collector(cfg, env, exploration, progress.frames)
+    update = make_update(cfg, loss, target_update, optim_actor, optim_critic)
+    log = RunLog(run_dir, resume_frames=progress.frames if resumed else None)
+    if not resumed:
+        log.text("config", "```\n" + OmegaConf.to_yaml(cfg, resolve=True) + "\n```")
+
+    steps_per_batch = cfg.collector.frames_per_batch // cfg.env.num_envs
+    bar = tqdm(total=cfg.total_frames, initial=progress.frames, disable=not cfg.logger.progress_bar, unit="frame")
+    last_checkpoint, episode_reward = progress.frames, float("nan")
+    clock = time.perf_counter()
+    for batch in collector:
+        env_seconds = time.perf_counter() - clock
+        progress.frames += batch.numel()
+        noise.step(steps_per_batch)
+        buffer.extend(batch.select(*TRANSITION_KEYS).reshape(-1))
+        clock = time.perf_counter()
+        losses = []
+        if progress.frames >= cfg.collector.init_random_frames and len(buffer) >= cfg.buffer.batch_size:
+            for _ in range(max(1, round(batch.numel() * cfg.collector.updates_per_frame))):
+                losses.append(update(buffer.sample(), progress.updates))
+                progress.updates += 1
+        update_seconds = time.perf_counter() - clock
+        scalars = batch_scalars(batch, losses, noise, env_seconds, update_seconds)
+        progress.episodes += int(batch["next", "done"].sum())
+        log.scalars(progress.frames, scalars)
+        bar.update(batch.numel())
+        episode_reward = scalars.get("train/episode_reward", episode_reward)  # episodes end every few batches
+        bar.set_postfix(episode_reward=f"{episode_reward:.2f}", gain_ub=f"{scalars['train/gain_ratio_ub']:.3f}")
+        if progress.frames - last_checkpoint >= cfg.checkpoint.every_frames or progress.frames >= cfg.total_frames:
+            save_checkpoint(run_dir, progress, learner, cfg.checkpoint.keep_buffer)
+            last_checkpoint = progress.frames
+        clock = time.perf_counter()
+    bar.close()
+    collector.shutdown()
+
+    # Evaluate the greedy policy against the baselines on the training point and write the final metrics
+    metrics = {"frames": progress.frames, "updates": progress.updates, "episodes": progress.episodes}
+    metrics.update(final_evaluation(cfg, actor))
+    # The evaluation goes to TensorBoard and final_metrics.json; the CSV keeps one row per batch.
+    log.scalars(progress.frames, {f"eval/{k}": v for k, v in metrics.items() if "/" in k}, csv_row=False)
+    log.hparams(_hparams(cfg), {f"hparam/{k}": v for k, v in metrics.items() if k.startswith("agent/")})
+    log.close()
+    atomic_write_json(run_dir / "final_metrics.json", metrics)
+    return metrics
+
+
+def batch_scalars(batch, losses, noise, env_seconds: float, update_seconds: float) -> dict[str, float]:
+    """TensorBoard/CSV scalars of one collected batch."""
+    nxt = batch["next"]
+    gain, upper = nxt["gain"].double(), nxt["gain_upper_bound"].double()
+    scalars = {
+        "train/mean_gain": gain.mean().item(),
+        "train/gain_ratio_ub": (gain.mean() / upper.mean()).item(),
+        "train/outage": (nxt["intensity"] < OUTAGE_FRACTION).double().mean().item(),
+        "train/mean_reward": nxt["reward"].double().mean().item(),
+        "train/noise_scale": _noise_scale(noise),
+        "time/frames_per_s": batch.numel() / max(env_seconds + update_seconds, 1e-9),
+        "time/env_share": env_seconds / max(env_seconds + update_seconds, 1e-9),
+    }
+    done = nxt["done"].squeeze(-1)
+    if done.any():
+        scalars["train/episode_reward"] = nxt["episode_reward"][done].double().mean().item()
+    if losses:
+        scalars["loss/actor"] = sum(a for a, _ in losses) / len(losses)
+        scalars["loss/critic"] = sum(c for _, c in losses) / len(losses)
+    return scalars
+
+
+def final_evaluation(cfg: DictConfig, actor) -> dict[str, float]:
+    """The greedy actor, straight-facing and flat-Snell on the same seas at the training wind and offset.
+
+    Evaluation's own runner and metrics (``eval`` group: realisations, steps, seed); keys are
+    ``<policy>/<metric>`` with the policy ``agent``, ``straight_facing``, ``flat_snell`` or
+    ``upper_bound``.
+    """
+    point = ((float(cfg.env.wind), float(cfg.env.offset_ratio)),)
+    scenario = Scenario("train", "training point", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
+    results = compare_policies(env_config(cfg), {"agent": actor, **FINAL_POLICIES}, scenario)
+    keep = (*METRICS, "mean_gain_lo", "mean_gain_hi")
+    return {f"{label}/{key}": values[key] for label, values in results.items() for key in keep}
+
+
+def _noise_scale(noise) -> float:
+    for name in ("sigma", "eps"):
+        value = getattr(noise, name, None)
+        if isinstance(value, torch.Tensor):
+            return value.float().mean().item()
+    return float("nan")
+
+
+def _hparams(cfg: DictConfig) -> dict:
+    flat = {}
+    for group in ("agent", "reward", "noise"):
+        for key, value in OmegaConf.to_container(cfg[group], resolve=True).items():
+            if isinstance(value, int | float | str | bool):
+                flat[f"{group}.{key}"] = value
+    flat["env.wind"] = cfg.env.wind
+    flat["env.offset_ratio"] = cfg.env.offset_ratio
+    return flat
