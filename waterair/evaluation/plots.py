@@ -1,8 +1,9 @@
 """Evaluation figures (paper Figs. "gain over time", "average gain", "σ²_diff", and the wind sweep).
 
 Each function takes an :class:`waterair.evaluation.Evaluation` and writes one PNG; a figure whose
-scenario was not evaluated is skipped. Colours and markers are fixed per policy kind so that the
-figures of one report read together.
+scenario was not evaluated is skipped. Every policy has its own colour, marker and line style (fixed
+per baseline, so that the figures of one report read together), and legends sit below the plots,
+outside the data.
 """
 
 from __future__ import annotations
@@ -14,13 +15,23 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-BASELINE_STYLES = {
-    "tracking": ("tab:purple", "v"),
-    "flat_snell": ("tab:green", "s"),
-    "straight_facing": ("tab:orange", "^"),
-    "no_alignment": ("tab:gray", "x"),
+STYLES = {
+    "bound": ("black", "o", (0, (6, 3)), 1.6),
+    "tracking": ("tab:purple", "v", ":", 1.4),
+    "flat_snell": ("tab:green", "s", "--", 1.4),
+    "straight_facing": ("tab:orange", "^", "-.", 1.3),
+    "no_alignment": ("tab:gray", "x", (0, (1, 1)), 1.2),
 }
-LEARNED_COLOURS = ("tab:blue", "tab:red", "tab:cyan", "tab:olive", "tab:pink", "tab:brown")
+"""Colour, marker, line style and width of the upper bound and each baseline: every policy differs in all four."""
+LEARNED_STYLES = (
+    ("tab:blue", "D", "-", 2.2),
+    ("tab:red", "P", "-", 2.2),
+    ("tab:cyan", "*", "-", 2.2),
+    ("tab:olive", "h", "-", 2.2),
+)
+"""Learned policies: solid and thick, told apart by colour and marker."""
+MARKS_PER_TRACE = 12
+"""Markers along a time trace (staggered per policy so that overlapping lines stay distinguishable)."""
 
 
 def evaluation_figures(result, out: Path) -> list[Path]:
@@ -42,31 +53,30 @@ def gain_vs_time(result, path: Path) -> Path:
     scenario = _scenario(result, "S1")
     traces = result.traces["S1"]
     time = [result.dt * (k + 1) for k in range(scenario.steps)]
-    fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
+    spacing = max(1, scenario.steps // MARKS_PER_TRACE)
+    fig, axes = plt.subplots(2, 1, figsize=(9, 7.5), sharex=True)
     for ax, title, reduce in (
         (axes[0], "one sea realisation (the first)", lambda g: g[0, 0]),
         (axes[1], f"mean over {scenario.realisations} realisations", lambda g: g[:, 0].double().mean(0)),
     ):
-        for policy in result.policies:
-            colour, _, style, width = _style(result, policy)
+        for index, policy in enumerate(result.policies):
+            colour, marker, style, width = _style(result, policy)
             ax.plot(time, reduce(traces[policy["label"]]["gain"]), color=colour, linestyle=style, linewidth=width,
+                    marker=marker, markersize=5, markevery=(index * spacing // len(result.policies), spacing),
                     label=policy["label"])  # fmt: skip
         ax.set_ylabel("channel gain G (m⁻²)")
         ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3)
     axes[1].set_xlabel("time (s)")
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, fontsize=8, ncol=min(len(labels), 6), loc="lower center")
     fig.suptitle(scenario.title)
-    fig.tight_layout(rect=(0, 0.05, 1, 1))
-    return _save(fig, path, layout=False)
+    return _save_with_legend(fig, axes[0], path)
 
 
 def gain_vs_sweep(result, name: str, path: Path) -> Path:
     """S2 or S3: mean gain with its interval (top) and the ratio to the upper bound (bottom) per point."""
     scenario = _scenario(result, name)
     x = _axis_values(scenario)
-    fig, axes = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    fig, axes = plt.subplots(2, 1, figsize=(8, 7.5), sharex=True)
     for policy in result.policies:
         rows = _rows(result, name, policy["label"])
         colour, marker, style, width = _style(result, policy)
@@ -76,21 +86,20 @@ def gain_vs_sweep(result, name: str, path: Path) -> Path:
                          capsize=3, label=policy["label"])  # fmt: skip
         axes[1].plot(x, [r["ratio_to_ub"] for r in rows], color=colour, marker=marker, linestyle=style, linewidth=width)
     axes[0].set_ylabel("mean channel gain (m⁻²)")
-    axes[0].legend(fontsize=8, ncol=2)
     axes[1].set_ylabel("mean G / mean G_UB")
     axes[1].set_ylim(0.0, 1.05)
     axes[1].set_xlabel(_axis_label(scenario))
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.suptitle(f"{scenario.title}\n{scenario.realisations} realisations × {scenario.steps * result.dt:g} s, 95 % CI")
-    return _save(fig, path)
+    return _save_with_legend(fig, axes[0], path)
 
 
 def sigma_diff_vs_offset(result, path: Path) -> Path:
     """S2: σ²_diff = var(G_UB − G) per offset, log scale (the upper bound, 0 by definition, is left out)."""
     scenario = _scenario(result, "S2")
     x = _axis_values(scenario)
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig, ax = plt.subplots(figsize=(8, 5))
     for policy in result.policies:
         if policy["kind"] == "bound":
             continue
@@ -105,8 +114,7 @@ def sigma_diff_vs_offset(result, path: Path) -> Path:
     ax.set_ylabel("σ²_diff = var(G_UB − G) (m⁻⁴)")
     ax.set_title(f"{scenario.title}: stability (lower is better, read with the gain)", fontsize=10)
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8, ncol=2)
-    return _save(fig, path)
+    return _save_with_legend(fig, ax, path)
 
 
 def _scenario(result, name: str):
@@ -127,20 +135,23 @@ def _axis_label(scenario) -> str:
     return "horizontal offset (% of the vertical distance)" if scenario.axis == "offset_ratio" else "wind U10 (m/s)"
 
 
-def _style(result, policy: dict) -> tuple[str, str, str, float]:
+def _style(result, policy: dict) -> tuple:
     """Colour, marker, line style and width of a policy."""
     if policy["kind"] == "bound":
-        return "black", "o", "--", 1.6
+        return STYLES["bound"]
     if policy["kind"] == "baseline":
-        colour, marker = BASELINE_STYLES.get(policy["label"], ("tab:brown", "d"))
-        return colour, marker, "-", 1.0
+        return STYLES.get(policy["label"], ("tab:brown", "d", "-", 1.2))
     learned = [p["label"] for p in result.policies if p["kind"] == "learned"]
-    return LEARNED_COLOURS[learned.index(policy["label"]) % len(LEARNED_COLOURS)], "D", "-", 2.0
+    return LEARNED_STYLES[learned.index(policy["label"]) % len(LEARNED_STYLES)]
 
 
-def _save(fig, path: Path, layout: bool = True) -> Path:
-    if layout:
-        fig.tight_layout()
+def _save_with_legend(fig, ax, path: Path) -> Path:
+    """Save ``fig`` with the legend of ``ax`` below every plot, outside the data."""
+    handles, labels = ax.get_legend_handles_labels()
+    rows = -(-len(labels) // 4)
+    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 4), fontsize=8, frameon=False,
+               handlelength=3.5)  # fmt: skip
+    fig.tight_layout(rect=(0, 0.035 * rows + 0.01, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
