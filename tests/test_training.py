@@ -1,7 +1,8 @@
-"""train.py and waterair.training: short runs, resume, sweeps, config errors."""
+"""train.py and waterair.training: short runs, resume, a kill at the worst moment, sweeps, config errors."""
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -13,7 +14,9 @@ import torch
 from conftest import ROOT, compose_config
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
+import waterair.training.checkpoint as checkpoint_module
 from waterair.training import train
+from waterair.training.resume import plan_resume
 
 TINY = [
     "env.num_envs=8",
@@ -100,6 +103,63 @@ def test_killed_run_resumes_to_the_configured_frames(tmp_path):
     steps = [step for step, _ in scalars(run_dir)["train/mean_gain"]]
     assert steps == sorted(set(steps)) and steps[0] == 400 and steps[-1] == 2400
     assert len(steps) == 2400 // 400  # no step logged twice, none restarted at 0
+    # the closing summary, on the console and in train.log
+    for text in (done.stdout, (run_dir / "train.log").read_text()):
+        assert f"Run directory: {run_dir}" in text and "Frames: 2,400" in text and "flat-sea Snell" in text
+
+    # resuming the finished run changes nothing and says so
+    csv_before, checkpoint_before = (run_dir / "metrics.csv").read_bytes(), checkpoint.read_bytes()
+    done = run_cli(f"resume={run_dir}")
+    assert done.returncode == 0 and "is complete: 2,400 of 2,400 frames" in done.stdout, done.stderr[-2000:]
+    assert (run_dir / "metrics.csv").read_bytes() == csv_before and checkpoint.read_bytes() == checkpoint_before
+
+    # a larger total_frames extends it to exactly that count; any other changed key is refused
+    refused = run_cli(f"resume={run_dir}", "agent.gamma=0.5")
+    assert refused.returncode != 0 and refused.stderr.strip().startswith("error: resume: agent.gamma=0.5 changes")
+    done = run_cli(f"resume={run_dir}", "total_frames=2800")
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert torch.load(checkpoint, weights_only=True)["frames"] == 2800
+    assert [step for step, _ in scalars(run_dir)["train/mean_gain"]][-2:] == [2400, 2800]
+
+
+class Killed(Exception):
+    """Stands for a SIGKILL at one exact moment."""
+
+
+@pytest.mark.slow
+def test_a_run_killed_between_buffer_dump_and_checkpoint_resumes_a_consistent_state(tmp_path, monkeypatch):
+    cfg = compose_cfg("total_frames=1200", "checkpoint.every_frames=400", "checkpoint.keep_buffer=true")
+    real_save, saves = checkpoint_module.save_policy, []
+
+    def killed_at_the_second_checkpoint(path, state):
+        saves.append(state["frames"])
+        if len(saves) == 2:  # its buffer dump (800 transitions) is on disk, the checkpoint not yet
+            raise Killed
+        return real_save(path, state)
+
+    monkeypatch.setattr(checkpoint_module, "save_policy", killed_at_the_second_checkpoint)
+    with pytest.raises(Killed):
+        train(cfg, tmp_path)
+    monkeypatch.undo()
+    folder = tmp_path / "checkpoints"
+    assert sorted(p.name for p in folder.iterdir()) == ["buffer-400", "buffer-800", "last.pt"]
+    state = torch.load(folder / "last.pt", weights_only=True)
+    assert state["frames"] == 400 and state["buffer"] == {"dir": "buffer-400", "size": 400}
+
+    resume = compose_cfg("total_frames=1200", "checkpoint.every_frames=400", "checkpoint.keep_buffer=true",
+                         f"resume={tmp_path}")  # fmt: skip
+    plan = plan_resume(resume, [f"resume={tmp_path}"])
+    assert plan.frames_done == 400 and not plan.finished
+    metrics = train(plan.config, tmp_path)
+    assert metrics["frames"] == 1200
+    state = torch.load(folder / "last.pt", weights_only=True)
+    assert state["buffer"] == {"dir": "buffer-1200", "size": 1200}
+    assert sorted(p.name for p in folder.iterdir()) == ["buffer-1200", "last.pt"]
+
+    shutil.rmtree(folder / "buffer-1200")  # a checkpoint whose dump is gone is refused, not resumed half-empty
+    overrides = [f"resume={tmp_path}", "total_frames=1600"]
+    with pytest.raises(ValueError, match="names the replay buffer .*buffer-1200, which is missing"):
+        train(plan_resume(compose_cfg(*overrides), overrides).config, tmp_path)
 
 
 @pytest.mark.slow

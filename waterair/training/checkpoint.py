@@ -3,11 +3,12 @@
 ``checkpoints/last.pt`` holds the policy entries (format tag, actor weights, observation size,
 frames) that evaluation reads, and everything a resumed run needs: counters, the loss module
 (networks and target networks), exploration noise, optimisers and random-number states. It is
-written atomically; the replay buffer, when kept, is dumped next to it.
+written atomically; the replay buffer, when kept, is dumped next to it first.
 """
 
 from __future__ import annotations
 
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,7 +18,8 @@ from waterair.agents.checkpoint import load_state, policy_state, save_policy
 
 CHECKPOINT = "checkpoints/last.pt"
 """Where a run's checkpoint lives, relative to the run directory."""
-BUFFER_DIR = "checkpoints/buffer"
+BUFFER_PREFIX = "buffer-"
+"""Replay-buffer dumps are ``checkpoints/buffer-<frames>`` folders."""
 
 
 @dataclass
@@ -44,9 +46,14 @@ class Learner:
 
 
 def save_checkpoint(run_dir: Path, progress: Progress, learner: Learner, keep_buffer: bool) -> Path:
-    """Write ``checkpoints/last.pt`` atomically (and dump the replay buffer first when kept)."""
-    if keep_buffer:
-        learner.buffer.dumps(str(Path(run_dir) / BUFFER_DIR))
+    """Write ``checkpoints/last.pt`` atomically; with ``keep_buffer`` dump the replay buffer first.
+
+    The buffer goes to ``checkpoints/buffer-<frames>`` (dumped under a temporary name, then renamed),
+    and the checkpoint records which dump and how many transitions it holds. Older dumps are
+    removed only after the new checkpoint is in place, so a run killed at any moment leaves a
+    checkpoint whose own dump is intact.
+    """
+    run_dir = Path(run_dir)
     state = {
         **policy_state(learner.actor, learner.observation_size, progress.frames),
         "updates": progress.updates,
@@ -58,19 +65,50 @@ def save_checkpoint(run_dir: Path, progress: Progress, learner: Learner, keep_bu
         "torch_rng": torch.get_rng_state(),
         "env_rng": learner.env_generator.get_state(),
     }
-    return save_policy(Path(run_dir) / CHECKPOINT, state)
+    if keep_buffer:
+        state["buffer"] = {"dir": _dump_buffer(run_dir, learner.buffer, progress.frames), "size": len(learner.buffer)}
+    path = save_policy(run_dir / CHECKPOINT, state)
+    keep = state.get("buffer", {}).get("dir")
+    for old in [*(run_dir / "checkpoints").glob(f"{BUFFER_PREFIX}*"), *(run_dir / "checkpoints").glob(".*.tmp")]:
+        if old.name != keep:
+            shutil.rmtree(old)
+    return path
 
 
 def load_checkpoint(run_dir: Path, learner: Learner, keep_buffer: bool) -> Progress:
-    """Restore everything :func:`save_checkpoint` wrote; ``torch.load(weights_only=True)`` only."""
-    state = load_state(Path(run_dir) / CHECKPOINT)
+    """Restore everything :func:`save_checkpoint` wrote; ``torch.load(weights_only=True)`` only.
+
+    With ``keep_buffer`` the replay buffer is restored from the dump the checkpoint names, and its
+    size is checked against the checkpoint; a missing or inconsistent dump is a one-line error.
+    """
+    run_dir = Path(run_dir)
+    state = load_state(run_dir / CHECKPOINT)
     learner.loss.load_state_dict(state["loss"])
     learner.noise.load_state_dict(state["exploration"])
     learner.optim_actor.load_state_dict(state["optim_actor"])
     learner.optim_critic.load_state_dict(state["optim_critic"])
     torch.set_rng_state(state["torch_rng"])
     learner.env_generator.set_state(state["env_rng"])
-    buffer_dir = Path(run_dir) / BUFFER_DIR
-    if keep_buffer and buffer_dir.exists():
-        learner.buffer.loads(str(buffer_dir))
+    if keep_buffer and "buffer" in state:
+        dump = run_dir / "checkpoints" / state["buffer"]["dir"]
+        if not dump.is_dir():
+            raise ValueError(f"checkpoint {run_dir / CHECKPOINT} names the replay buffer {dump}, which is missing")
+        learner.buffer.loads(str(dump))
+        if len(learner.buffer) != state["buffer"]["size"]:
+            raise ValueError(
+                f"replay buffer {dump} holds {len(learner.buffer)} transitions; its checkpoint says "
+                f"{state['buffer']['size']}"
+            )
     return Progress(state["frames"], state["updates"], state["episodes"])
+
+
+def _dump_buffer(run_dir: Path, buffer, frames: int) -> str:
+    """Dump ``buffer`` to ``checkpoints/buffer-<frames>`` via a temporary folder; return the folder's name."""
+    name = f"{BUFFER_PREFIX}{frames}"
+    final, temporary = run_dir / "checkpoints" / name, run_dir / "checkpoints" / f".{name}.tmp"
+    for stale in (final, temporary):
+        if stale.exists():
+            shutil.rmtree(stale)
+    buffer.dumps(str(temporary))
+    temporary.rename(final)
+    return name
