@@ -3,31 +3,25 @@
 ``python evaluate.py`` (the shipped policy), ``python evaluate.py run=outputs/train/DATE/TIME``,
 ``python evaluate.py run=[RUN_A,RUN_B] labels=[ddpg,td3]``, ``python evaluate.py checkpoint=FILE``.
 Writes metrics.json, metrics.csv, the figures and report.md into the Hydra run directory
-(outputs/evaluate/DATE/TIME). See docs/results.md.
+(outputs/evaluate/DATE/TIME). See docs/evaluation.md. The whole command line, checkpoints included,
+is checked before Hydra creates that directory.
 """
 
 import sys
-from pathlib import Path
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
-from waterair.evaluation.report import write_outputs
-from waterair.evaluation.runner import evaluate
+from waterair.cli import evaluation
+from waterair.cli.preflight import preflight
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="evaluate")
 def main(cfg: DictConfig) -> None:
-    out = Path(HydraConfig.get().runtime.output_dir)
-    try:
-        result = evaluate(cfg)
-    except ValueError as error:  # config values and checkpoints are all checked before any rollout
-        sys.exit(f"error: {error}")
-    for path in write_outputs(result, out, cfg, physics=cfg.physics_figures):
-        print(path)
-    print(f"report: {out / 'report.md'} ({result.seconds:.0f} s)")
+    evaluation.run(cfg, HydraConfig.get().runtime.output_dir)
 
 
 if __name__ == "__main__":
+    preflight("evaluate", sys.argv[1:], evaluation.check)
     main()

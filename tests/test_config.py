@@ -9,7 +9,7 @@ from waterair.training.config import validate
 GROUPS = {
     group.name: sorted(p.stem for p in group.glob("*.yaml"))
     for group in sorted((ROOT / "conf").iterdir())
-    if group.is_dir() and group.name != "env"
+    if group.is_dir() and group.name not in ("env", "hydra")
 }
 OPTIONS = [(group, option) for group, options in GROUPS.items() for option in options]
 OPTIONS += [("env/sea", p.stem) for p in sorted((ROOT / "conf" / "env" / "sea").glob("*.yaml"))]

@@ -1,6 +1,7 @@
 """evaluate.py and waterair.evaluation: schema, figures, same seas, the upper bound, checkpoint errors."""
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -137,10 +138,16 @@ def test_every_policy_sees_the_same_seas_and_stays_under_the_upper_bound(tiny_ru
 
 def test_one_batch_for_all_policies_gives_the_same_numbers_as_one_rollout_each(tmp_path):
     policy = write_policy(tmp_path / "policy.pt", observation_size=8)
+    lines = {True: [], False: []}
     results = [
-        evaluate(eval_cfg(f"checkpoint={policy}", f"batch_policies={together}", "scenarios.S3=null"), progress=print)
+        evaluate(eval_cfg(f"checkpoint={policy}", f"batch_policies={together}", "scenarios.S3=null"),
+                 progress=lines[together].append)
         for together in (True, False)
-    ]
+    ]  # fmt: skip
+    # one progress line per rollout, each with its own duration: S1 and S2 with every policy in one batch
+    # (the policy shares the baselines' interface), or S1 and S2 × 5 policies one at a time
+    assert len(lines[True]) == 2 and len(lines[False]) == 2 * 5
+    assert all(re.search(r": .+ in \d+ s$", line) for line in lines[True] + lines[False]), lines
     assert len(results[0].rows) == len(results[1].rows) == (1 + 2) * 6
     for batched, alone in zip(results[0].rows, results[1].rows, strict=True):
         assert batched["policy"] == alone["policy"]

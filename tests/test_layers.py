@@ -1,6 +1,6 @@
 """The package layout: imports point down the layers, no cycles, light imports, short modules.
 
-Layers, bottom to top: core → physics → envs → agents → evaluation → training, then the entry
+Layers, bottom to top: core → physics → envs → agents → evaluation → training → cli, then the entry
 points. A module may import its own layer and the ones below; nothing imports ``waterair.bench``.
 Imports inside functions count too.
 """
@@ -14,7 +14,7 @@ import pytest
 from conftest import ROOT
 
 PACKAGE = ROOT / "waterair"
-LAYERS = ("core", "physics", "envs", "agents", "evaluation", "training")
+LAYERS = ("core", "physics", "envs", "agents", "evaluation", "training", "cli")
 """Sub-packages from the bottom up."""
 FORBIDDEN = {
     "core": {"torchrl", "hydra", "omegaconf", "tensorboard", "matplotlib", "tensordict"},

@@ -109,22 +109,17 @@ def load_state(path: Path) -> dict:
         raise CheckpointError(f"checkpoint {path} does not exist")
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as error:  # torch raises many types for damaged or foreign bytes; classify by header
+    except Exception:  # torch raises many types for damaged or foreign bytes; classify by the header
         with path.open("rb") as handle:
             zipped = handle.read(4) == ZIP_MAGIC
         if zipped:
             raise CheckpointError(f"checkpoint {path} is truncated or damaged ({path.stat().st_size} bytes)") from None
-        raise CheckpointError(f"checkpoint {path} is not a torch file ({_first_line(error)})") from None
+        raise CheckpointError(
+            f"checkpoint {path} is not a torch file (torch.save writes a zip archive; this is none)"
+        ) from None
     if not isinstance(state, dict):
         raise CheckpointError(f"checkpoint {path} holds a {type(state).__name__}, not a waterair policy")
     return state
-
-
-def _first_line(error: Exception) -> str:
-    """``Type: first line of the message``, at most 120 characters, ending on a whole word."""
-    lines = str(error).strip().splitlines()
-    text = f"{type(error).__name__}: {lines[0]}" if lines else type(error).__name__
-    return text if len(text) <= 120 else text[:120].rsplit(" ", 1)[0] + " …"
 
 
 def _shapes(shapes: dict[str, tuple]) -> str:

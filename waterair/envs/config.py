@@ -13,7 +13,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from waterair.core.devices import DEVICES
+from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.physics.channel import LinkGeometry, Transceiver
 from waterair.physics.paths import METHODS
@@ -78,7 +78,7 @@ class EnvConfig:
 
     def __post_init__(self) -> None:
         check_int("env.num_envs", self.num_envs, 1, 2**24)
-        check_choice("env.device", self.device, DEVICES)
+        resolve_device(self.device, "env.device")  # cuda without a GPU is an error now
         check_choice("env.dtype", self.dtype, DTYPES)
         if self.seed is not None:
             check_int("env.seed", self.seed, 0, 2**63 - 1)

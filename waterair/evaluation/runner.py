@@ -90,19 +90,32 @@ def compare_policies(
     return {label: _point_metrics(t, 0, bootstrap) for label, t in runs.items()}
 
 
-def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, progress=print) -> Evaluation:
-    """Run every policy, every baseline and the upper bound on every scenario of ``cfg``.
+@dataclass
+class EvaluationPlan:
+    """Everything :func:`evaluate` checks before its first rollout, ready to run."""
 
-    ``policies`` defaults to the checkpoints ``cfg`` names. All checks (config values, checkpoint
-    files, observation sizes) happen before the first rollout.
+    scenarios: list[Scenario]
+    bootstrap: Bootstrap
+    env: EnvConfig  # the scenario physics (sea, geometry, dt, device) and the baselines' interface
+    baselines: list[str]
+    policies: list[LearnedPolicy]
+    learned: list[tuple]  # (policy, its env config, its actor on the device)
+    batch_policies: bool
+
+
+def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) -> EvaluationPlan:
+    """Check every config value, checkpoint file and observation size of ``cfg``; raise one-line errors.
+
+    ``policies`` defaults to the checkpoints ``cfg`` names.
     """
-    clock = time.perf_counter()
     scenarios = scenarios_from_config(cfg)
     bootstrap = Bootstrap(**OmegaConf.to_container(cfg.bootstrap, resolve=True))
-    device = resolve_device(cfg.device)
-    base = EnvConfig.from_mapping({**OmegaConf.to_container(cfg.env, resolve=True), "device": str(device)})
+    resolve_device(cfg.device)
+    base = EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
+    device = resolve_device(base.device, "env.device")
     scenario_env = {key: getattr(base, key) for key in INTERFACE_KEYS}
-    unknown = [name for name in as_list(cfg.baselines) if name not in BASELINES]
+    baselines = as_list(cfg.baselines)
+    unknown = [name for name in baselines if name not in BASELINES]
     if unknown:
         raise ValueError(f"baselines = {unknown[0]!r} is not a baseline; choose from {', '.join(BASELINES)}")
     if policies is None:
@@ -112,8 +125,6 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
             raise ValueError(f"labels has {len(labels)} entries for {len(sources)} checkpoints")
         policies = [load_policy(p, labels[i] if labels else None) for i, p in enumerate(sources)]
     _unique_labels(policies)
-
-    # Per learned policy: its environment interface and its actor (checked now, before any rollout)
     learned = []
     for policy in policies:
         env_config = base.replace(**policy.interface(scenario_env))
@@ -126,29 +137,44 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
                     f"scenarios.{scenario.name}.steps = {scenario.steps} is out of range; allowed [1, "
                     f"{env_config.max_steps}] ({owner} env.max_steps: a longer rollout would restart the seas)"
                 )
+    return EvaluationPlan(
+        scenarios, bootstrap, base, baselines, list(policies), learned, bool(cfg.get("batch_policies", True))
+    )
 
+
+def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, progress=print) -> Evaluation:
+    """Run every policy, every baseline and the upper bound on every scenario of ``cfg``.
+
+    Everything is checked (:func:`prepare`) before the first rollout. ``progress`` receives one
+    line per finished rollout, with its own duration.
+    """
+    clock = time.perf_counter()
+    plan = prepare(cfg, policies)
     result = Evaluation(
-        scenarios=scenarios,
+        scenarios=plan.scenarios,
         policies=[{"label": UPPER_BOUND, "kind": "bound"}]
-        + [_describe(policy, base) for policy in policies]
-        + [{"label": name, "kind": "baseline"} for name in as_list(cfg.baselines)],
-        env=base,
+        + [_describe(policy, plan.env) for policy in plan.policies]
+        + [{"label": name, "kind": "baseline"} for name in plan.baselines],
+        env=plan.env,
     )
     # Scenarios with the same realisations, steps and seed run as one batch over the union of their
     # points; within it, every group of policies sharing an interface runs as replicas of one env.
-    groups = _policy_groups(base, as_list(cfg.baselines), learned, together=cfg.get("batch_policies", True))
-    for batch in _batches(scenarios):
+    groups = _policy_groups(plan.env, plan.baselines, plan.learned, together=plan.batch_policies)
+    for batch in _batches(plan.scenarios):
         points = list(dict.fromkeys(p for s in batch for p in s.points))
         first = batch[0]
         runs = {}
         for env_config, members in groups:
+            start = time.perf_counter()
             runs.update(rollout_policies(env_config, members, points, first.realisations, first.steps, first.seed))
             names = ", ".join(label for label, _ in members)
-            progress(f"{'+'.join(s.name for s in batch)}: {names} done ({time.perf_counter() - clock:.0f} s)")
+            scenario_names = "+".join(s.name for s in batch)
+            progress(f"{scenario_names} ({len(points)} points × {first.realisations} seas × {first.steps} steps): "
+                     f"{names} in {time.perf_counter() - start:.0f} s")  # fmt: skip
         for scenario in batch:
             index = torch.tensor([points.index(p) for p in scenario.points])
             selected = {label: {k: v[:, index] for k, v in t.items()} for label, t in runs.items()}
-            _collect(result, scenario, selected, bootstrap)
+            _collect(result, scenario, selected, plan.bootstrap)
     result.seconds = time.perf_counter() - clock
     return result
 

@@ -7,7 +7,6 @@ The environment (``env``, ``reward``), networks (``actor``, ``critic``), loss an
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import torch
@@ -117,9 +116,13 @@ def make_buffer(cfg: DictConfig, run_dir: Path, device) -> TensorDictReplayBuffe
 
 
 def make_collector(cfg: DictConfig, env, policy, frames_done: int) -> Collector:
-    """TorchRL Collector for the frames still to go (all of them unless resuming)."""
-    remaining = max(cfg.total_frames - frames_done, cfg.collector.frames_per_batch)
-    remaining = math.ceil(remaining / cfg.collector.frames_per_batch) * cfg.collector.frames_per_batch
+    """TorchRL Collector for exactly the frames still to go (all of them unless resuming)."""
+    remaining = cfg.total_frames - frames_done
+    if remaining <= 0 or remaining % cfg.collector.frames_per_batch:
+        raise ValueError(
+            f"total_frames = {cfg.total_frames} leaves {remaining} frames after {frames_done}; that must be a "
+            f"positive multiple of collector.frames_per_batch = {cfg.collector.frames_per_batch}"
+        )
     random_frames = max(0, cfg.collector.init_random_frames - frames_done)
     return Collector(
         env,

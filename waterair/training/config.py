@@ -6,8 +6,6 @@ range. Each option of a group is checked for exactly the keys it carries.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from omegaconf import DictConfig, OmegaConf
 
 from waterair.agents.networks import ACTIVATIONS
@@ -52,8 +50,6 @@ def validate(cfg: DictConfig) -> None:
     check_int("eval.realisations", cfg.eval.realisations, 1)
     check_int("eval.steps", cfg.eval.steps, 1, cfg.env.max_steps)
     check_int("eval.seed", cfg.eval.seed, 0, 2**63 - 1)
-    if cfg.resume and not Path(cfg.resume).is_dir():
-        raise ValueError(f"resume = {cfg.resume!r} is not a run directory")
 
 
 def _check_agent(agent: DictConfig) -> None:

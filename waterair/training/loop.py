@@ -7,6 +7,7 @@ builds each piece from its config group. ``train.py`` is the thin Hydra entry po
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import torch
@@ -39,15 +40,21 @@ FINAL_POLICIES = {"straight_facing": "straight_facing", "flat_snell": "flat_snel
 """Baselines the closing evaluation scores the trained agent against (label → baseline name)."""
 
 
-def train(cfg: DictConfig, run_dir: Path) -> dict[str, float]:
-    """Train from ``cfg`` into ``run_dir`` (resuming from its checkpoint if ``cfg.resume``); return final metrics."""
+def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = print) -> dict[str, float]:
+    """Train from ``cfg`` into ``run_dir`` (resuming from its checkpoint if ``cfg.resume``); return final metrics.
+
+    ``progress`` receives a line when the closing evaluation starts and ends.
+    """
     run_dir = Path(run_dir)
     validate(cfg)
     resumed = bool(cfg.resume) and (run_dir / CHECKPOINT).exists()
     device = resolve_device(cfg.device)
     torch.manual_seed(cfg.seed)
     (run_dir / "checkpoints").mkdir(parents=True, exist_ok=True)
-    atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+    config_text = OmegaConf.to_yaml(cfg, resolve=True)
+    config_path = run_dir / "config.yaml"
+    if not config_path.exists() or config_path.read_text() != config_text:  # new, or total_frames raised
+        atomic_write_text(config_path, config_text)
 
     # Create the environment, agent, exploration, optimisers and replay buffer
     env = make_env(cfg)
@@ -59,49 +66,54 @@ def train(cfg: DictConfig, run_dir: Path) -> dict[str, float]:
     learner = Learner(
         actor, loss, noise, optim_actor, optim_critic, env.base_env.rng, buffer, env.base_env.observation_size
     )
-    progress = load_checkpoint(run_dir, learner, cfg.checkpoint.keep_buffer) if resumed else Progress()
+    counters = load_checkpoint(run_dir, learner, cfg.checkpoint.keep_buffer) if resumed else Progress()
 
     # Create the collector, the update step and the logger
-    collector = make_collector(cfg, env, exploration, progress.frames)
+    collector = make_collector(cfg, env, exploration, counters.frames)
     update = make_update(cfg, loss, target_update, optim_actor, optim_critic)
-    log = RunLog(run_dir, resume_frames=progress.frames if resumed else None)
+    log = RunLog(run_dir, resume_frames=counters.frames if resumed else None)
     if not resumed:
         log.text("config", "```\n" + OmegaConf.to_yaml(cfg, resolve=True) + "\n```")
 
     steps_per_batch = cfg.collector.frames_per_batch // cfg.env.num_envs
-    bar = tqdm(total=cfg.total_frames, initial=progress.frames, disable=not cfg.logger.progress_bar, unit="frame")
-    last_checkpoint, episode_reward = progress.frames, float("nan")
+    bar = tqdm(total=cfg.total_frames, initial=counters.frames, disable=not cfg.logger.progress_bar, unit="frame")
+    last_checkpoint, episode_reward = counters.frames, "–"  # the last finished episode's, once there is one
     clock = time.perf_counter()
     for batch in collector:
         env_seconds = time.perf_counter() - clock
-        progress.frames += batch.numel()
+        counters.frames += batch.numel()
         noise.step(steps_per_batch)
         buffer.extend(batch.select(*TRANSITION_KEYS).reshape(-1))
         clock = time.perf_counter()
         losses = []
-        if progress.frames >= cfg.collector.init_random_frames and len(buffer) >= cfg.buffer.batch_size:
+        if counters.frames >= cfg.collector.init_random_frames and len(buffer) >= cfg.buffer.batch_size:
             for _ in range(max(1, round(batch.numel() * cfg.collector.updates_per_frame))):
-                losses.append(update(buffer.sample(), progress.updates))
-                progress.updates += 1
+                losses.append(update(buffer.sample(), counters.updates))
+                counters.updates += 1
         update_seconds = time.perf_counter() - clock
         scalars = batch_scalars(batch, losses, noise, env_seconds, update_seconds)
-        progress.episodes += int(batch["next", "done"].sum())
-        log.scalars(progress.frames, scalars)
+        counters.episodes += int(batch["next", "done"].sum())
+        log.scalars(counters.frames, scalars)
         bar.update(batch.numel())
-        episode_reward = scalars.get("train/episode_reward", episode_reward)  # episodes end every few batches
-        bar.set_postfix(episode_reward=f"{episode_reward:.2f}", gain_ub=f"{scalars['train/gain_ratio_ub']:.3f}")
-        if progress.frames - last_checkpoint >= cfg.checkpoint.every_frames or progress.frames >= cfg.total_frames:
-            save_checkpoint(run_dir, progress, learner, cfg.checkpoint.keep_buffer)
-            last_checkpoint = progress.frames
+        if "train/episode_reward" in scalars:  # episodes end every few batches
+            episode_reward = f"{scalars['train/episode_reward']:.2f}"
+        bar.set_postfix(episode_reward=episode_reward, gain_ub=f"{scalars['train/gain_ratio_ub']:.3f}")
+        if counters.frames - last_checkpoint >= cfg.checkpoint.every_frames or counters.frames >= cfg.total_frames:
+            save_checkpoint(run_dir, counters, learner, cfg.checkpoint.keep_buffer)
+            last_checkpoint = counters.frames
         clock = time.perf_counter()
     bar.close()
     collector.shutdown()
 
     # Evaluate the greedy policy against the baselines on the training point and write the final metrics
-    metrics = {"frames": progress.frames, "updates": progress.updates, "episodes": progress.episodes}
+    metrics = {"frames": counters.frames, "updates": counters.updates, "episodes": counters.episodes}
+    clock = time.perf_counter()
+    seas = f"{cfg.eval.realisations} seas × {cfg.eval.steps} steps"
+    progress(f"Evaluating the greedy policy, flat-sea Snell and straight facing on {seas} …")
     metrics.update(final_evaluation(cfg, actor))
+    progress(f"Evaluated in {time.perf_counter() - clock:.0f} s")
     # The evaluation goes to TensorBoard and final_metrics.json; the CSV keeps one row per batch.
-    log.scalars(progress.frames, {f"eval/{k}": v for k, v in metrics.items() if "/" in k}, csv_row=False)
+    log.scalars(counters.frames, {f"eval/{k}": v for k, v in metrics.items() if "/" in k}, csv_row=False)
     log.hparams(_hparams(cfg), {f"hparam/{k}": v for k, v in metrics.items() if k.startswith("agent/")})
     log.close()
     atomic_write_json(run_dir / "final_metrics.json", metrics)

@@ -1,0 +1,1 @@
+"""What the entry points do before and around their work: command-line checks, progress, summaries."""

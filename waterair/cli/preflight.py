@@ -1,0 +1,123 @@
+"""Checks a command line completely before Hydra or the program writes anything.
+
+``train.py`` and ``evaluate.py`` call :func:`preflight` first. It composes the config exactly as
+Hydra will (every job of a ``-m`` sweep), refuses keys the config does not have (``foo=1`` and
+``+foo=1`` alike: a typo must not silently start a run), refuses removed keys (``~key``), and
+runs the program's own validation. Any problem exits with status 1 and one line on stderr, before
+Hydra creates a run directory. Adding a whole config group with ``+group=option`` stays allowed.
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from hydra import compose, initialize_config_dir
+from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.errors import HydraException
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+"""The Hydra config directory of the repository."""
+PASS_THROUGH = {"-h", "--help", "--hydra-help", "-i", "--info", "-c", "--cfg", "--version", "--shell-completion", "-sc"}
+"""Hydra flags that print something and run nothing: left to Hydra unchecked."""
+MULTIRUN = {"-m", "--multirun"}
+MAX_JOBS = 256
+"""A sweep with more jobs is checked on its first MAX_JOBS jobs (every value still appears)."""
+
+
+class CommandLineError(ValueError):
+    """A command line that must not start: the message is one line."""
+
+
+def preflight(config_name: str, argv: Sequence[str], check: Callable[[DictConfig, list[str]], None]) -> None:
+    """Compose every job of ``argv`` and ``check(cfg, overrides)`` each; exit with one line on a problem."""
+    if any(arg.split("=")[0] in PASS_THROUGH for arg in argv):
+        return
+    try:
+        for overrides in jobs(argv):
+            check(compose_checked(config_name, overrides), overrides)
+    except (CommandLineError, ValueError) as error:
+        sys.exit(f"error: {error}")
+    except OmegaConfBaseException as error:  # a key the program reads is missing or of the wrong type
+        sys.exit(f"error: {one_line(error)}")
+
+
+def jobs(argv: Sequence[str]) -> list[list[str]]:
+    """The override lists of every job ``argv`` starts: one, or each job of a ``-m`` sweep."""
+    overrides = [arg for arg in argv if not arg.startswith("-")]
+    if not any(arg in MULTIRUN for arg in argv):
+        return [overrides]
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except HydraException as error:
+        raise CommandLineError(one_line(error)) from None
+    batches = BasicSweeper.split_arguments(parsed, None)
+    return [job for batch in batches for job in batch][:MAX_JOBS]
+
+
+def compose_checked(config_name: str, overrides: Sequence[str]) -> DictConfig:
+    """The config Hydra composes for ``overrides``, after checking it has exactly the known keys.
+
+    The known keys are those of the same group choices without the other overrides: a key that
+    only ``+key=value`` brings in is an error naming it, and so is removing one with ``~key``.
+    """
+    groups = [o for o in overrides if _is_group_choice(o)]
+    removal = next((o for o in overrides if o.startswith("~") and o not in groups), None)
+    if removal:
+        raise CommandLineError(f"{removal.split('=')[0]} removes a key; set a value instead")
+    config = _compose(config_name, overrides)
+    added = sorted(_keys(config) - _keys(_compose(config_name, groups)))
+    if added:
+        raise CommandLineError(
+            f"{added[0]} is not a config key; keys cannot be added, with or without '+' (every key is in "
+            f"docs/training.md and docs/evaluation.md)"
+        )
+    return config
+
+
+def one_line(error: BaseException) -> str:
+    """Hydra's or OmegaConf's multi-line message as one line, without the search-path dump."""
+    text = str(error).split("\nConfig search path:")[0].split("\nSee https://")[0]
+    missing = re.match(r"Could not override '([^']+)'", text)
+    if missing:
+        return f"{missing.group(1)} is not a config key (check the spelling; every key is in docs/training.md)"
+    option = re.search(r"Could not find '([^']+)/([^'/]+)'\s+Available options in '[^']+':\s+(.*)", text, re.S)
+    if option:
+        group, name, choices = option.group(1), option.group(2), ", ".join(option.group(3).split())
+        return f"{group}={name} is not an option of {group}; choose one of {choices}"
+    return " ".join(text.replace("\t", " ").split())
+
+
+def _compose(config_name: str, overrides: Sequence[str]) -> DictConfig:
+    try:
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            return compose(config_name=config_name, overrides=list(overrides))
+    except (HydraException, OmegaConfBaseException) as error:
+        raise CommandLineError(one_line(error)) from None
+
+
+def _is_group_choice(override: str) -> bool:
+    """``group=option`` or ``+group=option`` for a config group of ours or of Hydra's."""
+    key = override.lstrip("+~").split("=")[0]
+    return key.startswith("hydra/") or (CONF_DIR / key).is_dir()
+
+
+def _keys(config: DictConfig) -> set[str]:
+    """Every leaf and container path of ``config`` (``a.b.c``), without Hydra's own node."""
+    plain = OmegaConf.to_container(config, resolve=False)
+    found: set[str] = set()
+
+    def walk(node, prefix: str) -> None:
+        if isinstance(node, dict):
+            for key, value in node.items():
+                path = f"{prefix}{key}"
+                found.add(path)
+                walk(value, path + ".")
+
+    walk({k: v for k, v in plain.items() if k != "hydra"}, "")
+    return found

@@ -1,0 +1,66 @@
+"""What ``train.py`` does around :func:`waterair.training.train`: checks, resume, the closing summary."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import time
+from pathlib import Path
+
+from omegaconf import DictConfig
+
+from waterair.training import train, validate
+from waterair.training.resume import plan_resume
+
+log = logging.getLogger("waterair.train")
+
+
+def check(cfg: DictConfig, overrides: list[str]) -> None:
+    """Everything a training command line must satisfy before anything is written (one-line errors)."""
+    if cfg.resume:
+        plan_resume(cfg, overrides)
+    else:
+        validate(cfg)
+
+
+def run(cfg: DictConfig, overrides: list[str], output_dir: str | Path) -> float:
+    """Train (or resume) and log the closing summary; return the greedy policy's mean gain (1/m²)."""
+    clock = time.perf_counter()
+    run_dir = Path(output_dir)
+    if cfg.resume:
+        plan = plan_resume(cfg, overrides)
+        if plan.finished:
+            log.info(
+                f"Run {plan.run_dir} is complete: {plan.frames_done:,} of {plan.config.total_frames:,} frames. "
+                f"Nothing to do; total_frames=N with N > {plan.config.total_frames} extends it."
+            )
+            return _saved_metrics(plan.run_dir).get("agent/mean_gain", math.nan)
+        cfg, run_dir = plan.config, plan.run_dir
+    metrics = train(cfg, run_dir, progress=log.info)
+    log.info(summary(cfg, run_dir, metrics, time.perf_counter() - clock))
+    return metrics["agent/mean_gain"]
+
+
+def summary(cfg: DictConfig, run_dir: Path, metrics: dict[str, float], seconds: float) -> str:
+    """The closing lines: where the run is, what it did, how the greedy policy scored, what to run next."""
+    minutes, rest = divmod(round(seconds), 60)
+    ratio = {label: metrics[f"{label}/ratio_to_ub"] for label in ("agent", "flat_snell", "straight_facing")}
+    return "\n".join(
+        [
+            "",
+            f"Run directory: {run_dir}",
+            f"Frames: {metrics['frames']:,} ({metrics['updates']:,} updates, {metrics['episodes']:,} episodes) "
+            f"in {minutes} min {rest} s",
+            f"Greedy policy at U10 = {cfg.env.wind:g} m/s, offset {cfg.env.offset_ratio:.0%} "
+            f"({cfg.eval.realisations} seas × {cfg.eval.steps} steps): {ratio['agent']:.3f} of the upper bound "
+            f"(flat-sea Snell {ratio['flat_snell']:.3f}, straight facing {ratio['straight_facing']:.3f})",
+            f"TensorBoard: .venv/bin/tensorboard --logdir {run_dir / 'tensorboard'}",
+            f"Full evaluation: .venv/bin/python evaluate.py run={run_dir}",
+        ]
+    )
+
+
+def _saved_metrics(run_dir: Path) -> dict:
+    path = run_dir / "final_metrics.json"
+    return json.loads(path.read_text()) if path.exists() else {}
