@@ -113,6 +113,7 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
     resolve_device(cfg.device)
     base = EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
     device = resolve_device(base.device, "env.device")
+    base = base.replace(device=str(device))  # reports name the device that ran, not "auto"
     scenario_env = {key: getattr(base, key) for key in INTERFACE_KEYS}
     baselines = as_list(cfg.baselines)
     unknown = [name for name in baselines if name not in BASELINES]
