@@ -12,7 +12,11 @@ GROUPS = {
     if group.is_dir() and group.name not in ("env", "hydra")
 }
 OPTIONS = [(group, option) for group, options in GROUPS.items() for option in options]
-OPTIONS += [("env/sea", p.stem) for p in sorted((ROOT / "conf" / "env" / "sea").glob("*.yaml"))]
+OPTIONS += [
+    (f"env/{group}", p.stem)
+    for group in ("sea", "sensor", "observation")
+    for p in sorted((ROOT / "conf" / "env" / group).glob("*.yaml"))
+]
 LAUNCHERS = ["basic", "joblib", "submitit_local", "submitit_slurm"]
 SELECTED = {"actor", "critic", "agent", "buffer", "noise", "reward", "logger"}
 """Groups whose options say which one they are, always under the key ``name``."""

@@ -6,7 +6,8 @@ from torchrl.envs.utils import check_env_specs
 
 from waterair.core.devices import resolve_device
 from waterair.envs.config import EnvConfig
-from waterair.envs.env import WaterAirEnv, intensity_feature
+from waterair.envs.env import WaterAirEnv
+from waterair.envs.sensors import intensity_feature
 
 SMALL_SEA = {"n_freq": 16, "n_dir": 8}
 

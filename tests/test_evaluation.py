@@ -94,7 +94,8 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     data = json.loads((tmp_path / "metrics.json").read_text())
     assert data["schema_version"] == 1
     labels = [p["label"] for p in data["policies"]]
-    assert labels[0] == "upper_bound" and labels[2:] == ["tracking", "flat_snell", "straight_facing", "no_alignment"]
+    references = ["tracking", "aoa_tracker", "intensity_dither", "flat_snell", "straight_facing", "no_alignment"]
+    assert labels[0] == "upper_bound" and labels[2:] == references
     assert data["policies"][1]["kind"] == "learned" and data["policies"][1]["frames"] == 800
     points = {"S1": 1, "S2": 2, "S3": 2}
     assert {s["name"]: len(s["points"]) for s in data["scenarios"]} == points
@@ -121,7 +122,7 @@ def test_every_policy_sees_the_same_seas_and_stays_under_the_upper_bound(tiny_ru
     spot = write_policy(tmp_path / "spot.pt", observation_size=10, extras=("spot",))
     result = evaluate(eval_cfg(f"run={tiny_run}", f"checkpoint={spot}"), progress=lambda _: None)
     kinds = [p["kind"] for p in result.policies]
-    assert kinds == ["bound", "learned", "learned", "baseline", "baseline", "baseline", "baseline"]
+    assert kinds == ["bound", "learned", "learned"] + ["baseline"] * 6
     for scenario, traces in result.traces.items():
         reference = traces["upper_bound"]["gain_upper_bound"]
         for label, trace in traces.items():
@@ -144,11 +145,11 @@ def test_one_batch_for_all_policies_gives_the_same_numbers_as_one_rollout_each(t
                  progress=lines[together].append)
         for together in (True, False)
     ]  # fmt: skip
-    # one progress line per rollout, each with its own duration: S1 and S2 with every policy in one batch
-    # (the policy shares the baselines' interface), or S1 and S2 × 5 policies one at a time
-    assert len(lines[True]) == 2 and len(lines[False]) == 2 * 5
+    # one progress line per rollout, each with its own duration: S1 and S2 × (the baselines and
+    # controllers together, the policy with its own observation), or S1 and S2 × 7 policies one at a time
+    assert len(lines[True]) == 2 * 2 and len(lines[False]) == 2 * 7
     assert all(re.search(r": .+ in \d+ s$", line) for line in lines[True] + lines[False]), lines
-    assert len(results[0].rows) == len(results[1].rows) == (1 + 2) * 6
+    assert len(results[0].rows) == len(results[1].rows) == (1 + 2) * 8
     for batched, alone in zip(results[0].rows, results[1].rows, strict=True):
         assert batched["policy"] == alone["policy"]
         for name in METRICS:

@@ -218,3 +218,12 @@ def test_run_dir_defaults_to_a_dated_folder_and_resume_continues_in_place(resume
         assert run_dir.startswith("outputs/train/20")
     else:
         assert run_dir == resume
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("preset", ["intensity", "quadrant"])
+def test_a_short_run_trains_and_reloads_with_each_observation_preset(preset, tmp_path):
+    metrics = train(compose_cfg("total_frames=800", f"env/observation={preset}", "env/sensor=realistic"), tmp_path)
+    assert metrics["frames"] == 800 and metrics["updates"] > 0
+    state = torch.load(tmp_path / "checkpoints" / "last.pt", weights_only=True)
+    assert state["observation_size"] == {"intensity": 28, "quadrant": 13}[preset]

@@ -23,6 +23,8 @@ class PointingPolicy(TensorDictModuleBase):
     in_keys = ["tx_position", "rx_position", "observation"]
     out_keys = ["action"]
     name = "pointing"
+    required_extras: tuple[str, ...] = ()
+    """Observation parts (``env.observation_extras``) the policy reads besides the paper's eight."""
 
     def __init__(self, env: WaterAirEnv):
         super().__init__()

@@ -20,7 +20,8 @@ from waterair.physics.paths import METHODS
 from waterair.physics.sea import SeaState
 
 ACTION_MODES = ("absolute", "delta")
-OBSERVATION_EXTRAS = ("spot", "history")
+OBSERVATION_EXTRAS = ("spot", "spot_valid", "history", "action_history", "geometry")
+"""Opt-in observation parts, in the order they follow the paper's 8 (docs/environment.md)."""
 DTYPES = ("float32", "float64")
 
 
@@ -60,9 +61,16 @@ class EnvConfig:
     action_mode: str = "absolute"  # absolute | delta
     max_tilt_deg: float = 45.0  # largest pointing tilt from vertical
     max_slew_deg_s: float = 60.0  # delta mode: largest tilt change per second
-    observation_extras: tuple[str, ...] = ()  # any of: spot, history
-    history_length: int = 4  # intensity features kept by the "history" extra
+    observation_extras: tuple[str, ...] = ()  # any of OBSERVATION_EXTRAS; presets: env/observation=
+    history_length: int = 4  # readings kept by the "history" and "action_history" extras
     solver: str = "newton"  # newton | centroid
+    # sensing (docs/environment.md, "Sensing"); all 0 / null: the ideal sensor (preset env/sensor=ideal)
+    latency_steps: int = 0  # extra steps before a measurement packet reaches the controller
+    intensity_noise: float = 0.0  # relative standard deviation of the measured intensity
+    intensity_noise_floor: float = 0.0  # additive standard deviation of the measured intensity (units of I)
+    intensity_saturation: float | None = None  # largest measurable intensity I, or null
+    spot_noise_rad: float = 0.0  # standard deviation of each quadrant-detector component, as an angle (rad)
+    spot_threshold: float = 0.0  # measured intensity below which the detector reads no spot
     # domain randomisation: per-link values drawn uniformly at every reset, or None
     wind_range: tuple[float, float] | None = None  # m/s
     offset_range: tuple[float, float] | None = None  # offset ratio
@@ -91,6 +99,13 @@ class EnvConfig:
         for extra in self.observation_extras:
             check_choice("env.observation_extras", extra, OBSERVATION_EXTRAS)
         check_int("env.history_length", self.history_length, 1, 1000)
+        check_int("env.latency_steps", self.latency_steps, 0, 1000)
+        check_range("env.intensity_noise", self.intensity_noise, 0.0, 10.0)
+        check_range("env.intensity_noise_floor", self.intensity_noise_floor, 0.0, 10.0)
+        if self.intensity_saturation is not None:
+            check_range("env.intensity_saturation", self.intensity_saturation, 0.0, 1e6, low_open=True)
+        check_range("env.spot_noise_rad", self.spot_noise_rad, 0.0, 1.0, unit="rad")
+        check_range("env.spot_threshold", self.spot_threshold, 0.0, 1e6)
         check_int("env.replicas", self.replicas, 1, self.num_envs)
         if self.num_envs % self.replicas:
             raise ValueError(
@@ -178,13 +193,18 @@ class EnvConfig:
         """Where each named part sits in the observation vector, in order (docs/environment.md).
 
         ``tx_pointing`` (3), ``rx_pointing`` (3), ``intensity`` (1), ``time`` (1), then the opt-in
-        extras in this order: ``spot`` (2) and ``history`` (``history_length``).
+        extras in the order of :data:`OBSERVATION_EXTRAS`: ``spot`` (2), ``spot_valid`` (1),
+        ``history`` (``history_length``), ``action_history`` (4 × ``history_length``), ``geometry`` (2).
         """
+        extra_sizes = {
+            "spot": 2,
+            "spot_valid": 1,
+            "history": self.history_length,
+            "action_history": 4 * self.history_length,
+            "geometry": 2,
+        }
         sizes = {"tx_pointing": 3, "rx_pointing": 3, "intensity": 1, "time": 1}
-        if "spot" in self.observation_extras:
-            sizes["spot"] = 2
-        if "history" in self.observation_extras:
-            sizes["history"] = self.history_length
+        sizes.update({name: extra_sizes[name] for name in OBSERVATION_EXTRAS if name in self.observation_extras})
         layout, start = {}, 0
         for name, size in sizes.items():
             layout[name] = slice(start, start + size)

@@ -15,13 +15,13 @@ from torchrl.envs import EnvBase
 from waterair.core.devices import resolve_device
 from waterair.envs.config import EnvConfig
 from waterair.envs.rewards import Reward
+from waterair.envs.sensors import PACKET_PARTS, PacketDelay, Sensor, intensity_feature, spot_position
 from waterair.physics.channel import calm_sea_gains, channel_gain, gain_upper_bound, pointing
 from waterair.physics.paths import flat_sea_point, solve_path
 from waterair.physics.surface import WaveSurface
 
-INTENSITY_EPS = 1e-6
-"""Offset inside the observed intensity feature log10(I + ε), so that I = 0 maps to a finite value."""
-
+SENSOR_SEED_MASK = 0x5E5E5E5E
+"""The sensor-noise generator is seeded with ``seed XOR`` this, independent of the seas'."""
 MEASUREMENT_KEYS = (
     "gain",
     "gain_upper_bound",
@@ -32,14 +32,6 @@ MEASUREMENT_KEYS = (
     "departure",
     "arrival",
 )
-
-
-def intensity_feature(intensity: torch.Tensor) -> torch.Tensor:
-    """Observed intensity feature (log10(I + 1e-6) + 6) / 6: 0 for no light, ≈ 1 at calm-sea level.
-
-    Monotone in I; logarithmic because I spans many decades between aligned and lost.
-    """
-    return (torch.log10(intensity + INTENSITY_EPS) + 6.0) / 6.0
 
 
 class WaterAirEnv(EnvBase):
@@ -88,7 +80,18 @@ class WaterAirEnv(EnvBase):
         self.observation_size = config.observation_size
         self._make_specs()
         self._generator = torch.Generator()
+        self._sensor_generator = torch.Generator()
         self._set_seed(config.seed)
+        self.sensor = Sensor(
+            config.latency_steps,
+            config.intensity_noise,
+            config.intensity_noise_floor,
+            config.intensity_saturation,
+            config.spot_noise_rad,
+            config.spot_threshold,
+            self.optics.half_fov,
+            self._sensor_generator,
+        )
         self._allocate_state()
         self._reset_rows(torch.arange(config.num_envs, device=self.device))
 
@@ -114,7 +117,9 @@ class WaterAirEnv(EnvBase):
             raise ValueError(
                 f"action contains NaN (links {bad[:8]}{'…' if len(bad) > 8 else ''}); actions must be finite"
             )
-        self._apply_action(action.to(self.float_dtype).clamp(-1.0, 1.0))
+        action = action.to(self.float_dtype).clamp(-1.0, 1.0)
+        self._apply_action(action)
+        self.action_history = torch.cat((action.unsqueeze(1), self.action_history[:, :-1]), dim=1)
         self.time = self.time + self.config.dt
         self.steps = self.steps + 1
         path = solve_path(
@@ -142,16 +147,24 @@ class WaterAirEnv(EnvBase):
         return out
 
     def _set_seed(self, seed: int | None) -> None:
-        # Random numbers are drawn on the CPU generator, so a seed gives the same seas on any device.
+        # Random numbers are drawn on CPU generators, so a seed gives the same seas on any device.
+        # Sensor noise has its own generator: noisy and ideal sensors see the same seas.
         if seed is None:
             self._generator.seed()
+            self._sensor_generator.seed()
         else:
             self._generator.manual_seed(int(seed))
+            self._sensor_generator.manual_seed(int(seed) ^ SENSOR_SEED_MASK)
 
     @property
     def rng(self) -> torch.Generator:
         """The environment's own CPU generator (seas, domain randomisation); save and restore its state."""
         return self._generator
+
+    @property
+    def sensor_rng(self) -> torch.Generator:
+        """The CPU generator of the sensor noise; save and restore its state with :attr:`rng`'s."""
+        return self._sensor_generator
 
     # --- helpers for policies ---------------------------------------------------------------
 
@@ -176,6 +189,11 @@ class WaterAirEnv(EnvBase):
         return ((target - current.to(self.float_dtype)) / self._slew_step).clamp(-1.0, 1.0)
 
     # --- internals --------------------------------------------------------------------------
+
+    @property
+    def _vertical_distance(self) -> float:
+        """tx_depth + rx_height (m): the scale of the ``geometry`` observation."""
+        return self.config.tx_depth + self.config.rx_height
 
     @property
     def _slew_step(self) -> float:
@@ -218,7 +236,9 @@ class WaterAirEnv(EnvBase):
         self.tx_position, self.rx_position = zeros(3), zeros(3)
         self.point, self.flat_point = zeros(3), zeros(3)
         self.reference_gain = zeros()
-        self.history = zeros(self.config.history_length)
+        self.history = zeros(self.config.history_length)  # previous measured intensity features
+        self.last_feature = zeros()  # the newest measured intensity feature
+        self.action_history = zeros(self.config.history_length, 4)
         self.measurement = TensorDict(
             {
                 "gain": zeros(),
@@ -229,11 +249,23 @@ class WaterAirEnv(EnvBase):
                 "alpha_a": zeros(),
                 "departure": zeros(3),
                 "arrival": zeros(3),
-                "spot": zeros(2),
             },
             batch_size=[batch],
             device=device,
         )
+        packet = TensorDict(
+            {
+                "tx_pointing": zeros(3),
+                "rx_pointing": zeros(3),
+                "intensity": zeros(1),
+                "spot": zeros(2),
+                "spot_valid": zeros(1),
+                "history": zeros(self.config.history_length),
+            },
+            batch_size=[batch],
+            device=device,
+        )
+        self.packets = PacketDelay(self.config.latency_steps, packet)
 
     def _reset_rows(self, rows: torch.Tensor) -> None:
         """New seas, geometry, pointing and a cold path solve for ``rows`` (``[n]`` indices)."""
@@ -266,8 +298,9 @@ class WaterAirEnv(EnvBase):
             n_air=self.optics.n_air,
             compiled=self.config.compile_kernel,
         )
-        self._record(path, rows)
         self.history[rows] = 0.0
+        self.action_history[rows] = 0.0
+        self._record(path, rows, reset=True)
 
     def _per_link(self, bounds, values, default, rows: torch.Tensor) -> torch.Tensor | None:
         """float64 ``[n]`` values for ``rows``: drawn from ``bounds``, cycled from ``values``, or ``default``."""
@@ -290,16 +323,32 @@ class WaterAirEnv(EnvBase):
         norm = torch.linalg.vector_norm(tilt, dim=-1, keepdim=True)
         return tilt * (self.config.max_tilt / norm.clamp(min=self.config.max_tilt))
 
-    def _record(self, path, rows: torch.Tensor) -> None:
-        """Store the path's gains for ``rows`` and the warm start of the next solve."""
+    def _record(self, path, rows: torch.Tensor, reset: bool = False) -> None:
+        """Store the path's gains and the sensor packet for ``rows``, and the warm start of the next solve."""
         tx_dir, rx_dir = pointing(self.tx_tilt[rows], up=True), pointing(self.rx_tilt[rows], up=False)
         gain = channel_gain(path, tx_dir, rx_dir, self.optics)
         intensity = gain.gain / self.reference_gain[rows]
         # An invalid path restarts its next solve from the calm-sea point rather than a lost one.
         self.point[rows] = torch.where(path.valid.unsqueeze(-1), path.point, self.flat_point[rows])
-        self.history[rows] = torch.cat(
-            (intensity_feature(self.measurement["intensity"][rows]).unsqueeze(-1), self.history[rows, :-1]), dim=-1
+        if not reset:
+            self.history[rows] = torch.cat((self.last_feature[rows].unsqueeze(-1), self.history[rows, :-1]), dim=-1)
+        measured = self.sensor.intensity(intensity)
+        spot, spot_valid = self.sensor.spot(
+            spot_position(path.arrival, rx_dir, self.optics.half_fov), gain.arrival > 0, measured
         )
+        self.last_feature[rows] = intensity_feature(measured)
+        packet = TensorDict(
+            {
+                "tx_pointing": tx_dir,
+                "rx_pointing": rx_dir,
+                "intensity": self.last_feature[rows].unsqueeze(-1),
+                "spot": spot,
+                "spot_valid": spot_valid.unsqueeze(-1),
+                "history": self.history[rows],
+            },
+            batch_size=[rows.numel()],
+        )
+        self.packets.push(rows, packet, fill=reset)
         self.measurement[rows] = TensorDict(
             {
                 "gain": gain.gain,
@@ -310,35 +359,18 @@ class WaterAirEnv(EnvBase):
                 "alpha_a": gain.alpha_a,
                 "departure": path.departure,
                 "arrival": path.arrival,
-                "spot": self._spot(path.arrival, rx_dir, gain.arrival > 0),
             },
             batch_size=[rows.numel()],
         )
 
-    def _spot(self, arrival: torch.Tensor, boresight: torch.Tensor, lit: torch.Tensor) -> torch.Tensor:
-        """Arrival direction −u_a in the receiver frame, over tan ω_A (quadrant-detector position)."""
-        incoming = -arrival
-        along = (incoming * boresight).sum(-1, keepdim=True)
-        across = incoming - along * boresight
-        east = torch.zeros_like(boresight)
-        east[:, 0] = 1.0
-        e1 = east - (east * boresight).sum(-1, keepdim=True) * boresight
-        e1 = e1 / torch.linalg.vector_norm(e1, dim=-1, keepdim=True)
-        e2 = torch.linalg.cross(boresight, e1, dim=-1)
-        spot = torch.stack(((across * e1).sum(-1), (across * e2).sum(-1)), -1) / (
-            along.clamp(min=1e-6) * math.tan(self.optics.half_fov)
-        )
-        return torch.where(lit.unsqueeze(-1), spot, torch.zeros_like(spot))
-
     def _output(self) -> TensorDict:
         m = self.measurement
+        packet = self.packets.delivered()
         parts = {
-            "tx_pointing": pointing(self.tx_tilt, up=True),
-            "rx_pointing": pointing(self.rx_tilt, up=False),
-            "intensity": intensity_feature(m["intensity"]).unsqueeze(-1),
+            **{name: packet[name] for name in PACKET_PARTS},
             "time": (self.time / self.config.episode_seconds).unsqueeze(-1),
-            "spot": m["spot"],
-            "history": self.history,
+            "action_history": self.action_history.flatten(1),
+            "geometry": (self.rx_position - self.tx_position)[:, :2] / self._vertical_distance,
         }
         out = TensorDict(
             {key: m[key].clone() for key in MEASUREMENT_KEYS},

@@ -25,12 +25,15 @@ from waterair.core.devices import resolve_device
 from waterair.core.validation import check_int, check_range
 from waterair.envs.baselines import BASELINES
 from waterair.envs.config import EnvConfig
+from waterair.envs.controllers import CONTROLLERS
 from waterair.envs.env import WaterAirEnv
 from waterair.evaluation.metrics import scenario_metrics
 from waterair.evaluation.policies import INTERFACE_KEYS, LearnedPolicy, as_list, checkpoint_sources, load_policy
 from waterair.evaluation.scenarios import Scenario, scenarios_from_config
 
 UPPER_BOUND = "upper_bound"
+REFERENCES = {**BASELINES, **CONTROLLERS}
+"""Everything ``baselines`` may name: the model-based baselines and the classical controllers."""
 TRACE_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid")
 
 
@@ -116,9 +119,9 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
     base = base.replace(device=str(device))  # reports name the device that ran, not "auto"
     scenario_env = {key: getattr(base, key) for key in INTERFACE_KEYS}
     baselines = as_list(cfg.baselines)
-    unknown = [name for name in baselines if name not in BASELINES]
+    unknown = [name for name in baselines if name not in REFERENCES]
     if unknown:
-        raise ValueError(f"baselines = {unknown[0]!r} is not a baseline; choose from {', '.join(BASELINES)}")
+        raise ValueError(f"baselines = {unknown[0]!r} is not a baseline; choose from {', '.join(REFERENCES)}")
     if policies is None:
         labels = as_list(cfg.get("labels"))
         sources = checkpoint_sources(cfg)
@@ -188,15 +191,19 @@ def _batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
 
 
 def _policy_groups(base: EnvConfig, baselines: list[str], learned, together: bool = True) -> list[tuple]:
-    """(env config, [(label, policy or baseline name)]) per distinct interface; baselines use the scenario's.
+    """(env config, [(label, policy or baseline name)]) per distinct interface.
 
-    ``together=False`` gives every policy its own group (own rollout): slower, less memory.
+    Baselines and controllers use the scenario's environment with every observation part they read
+    (``required_extras``). ``together=False`` gives every policy its own group (own rollout):
+    slower, less memory.
     """
+    required = [part for name in baselines for part in REFERENCES[name].required_extras]
+    reference = base.replace(observation_extras=tuple(dict.fromkeys((*base.observation_extras, *required))))
     if not together:
-        return [(base, [(name, name)]) for name in baselines] + [(c, [(p.label, a)]) for p, c, a in learned]
+        return [(reference, [(name, name)]) for name in baselines] + [(c, [(p.label, a)]) for p, c, a in learned]
     groups: list[tuple[EnvConfig, list]] = []
     if baselines:
-        groups.append((base, [(name, name) for name in baselines]))
+        groups.append((reference, [(name, name) for name in baselines]))
     for policy, env_config, actor in learned:
         match = next((members for config, members in groups if config == env_config), None)
         if match is None:
@@ -243,7 +250,7 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
             offset_range=None,
         )
     )
-    policies = [BASELINES[policy](env) if isinstance(policy, str) else policy for _, policy in members]
+    policies = [REFERENCES[policy](env) if isinstance(policy, str) else policy for _, policy in members]
     env.set_seed(seed)
     with set_exploration_type(ExplorationType.DETERMINISTIC), torch.no_grad():
         rollout = env.rollout(steps, PolicySplit(policies, links), break_when_any_done=False)
@@ -324,7 +331,7 @@ def _shown(path: Path) -> str:
 def _unique_labels(policies: Sequence[LearnedPolicy]) -> None:
     seen: dict[str, int] = {}
     for policy in policies:
-        if policy.label in BASELINES or policy.label == UPPER_BOUND:
+        if policy.label in REFERENCES or policy.label == UPPER_BOUND:
             policy.label = f"{policy.label} (learned)"
         count = seen.get(policy.label, 0)
         seen[policy.label] = count + 1

@@ -41,6 +41,7 @@ class Learner:
     optim_actor: torch.optim.Optimizer
     optim_critic: torch.optim.Optimizer
     env_generator: torch.Generator
+    sensor_generator: torch.Generator
     buffer: object
     observation_size: int
 
@@ -64,6 +65,7 @@ def save_checkpoint(run_dir: Path, progress: Progress, learner: Learner, keep_bu
         "optim_critic": learner.optim_critic.state_dict(),
         "torch_rng": torch.get_rng_state(),
         "env_rng": learner.env_generator.get_state(),
+        "sensor_rng": learner.sensor_generator.get_state(),
     }
     if keep_buffer:
         state["buffer"] = {"dir": _dump_buffer(run_dir, learner.buffer, progress.frames), "size": len(learner.buffer)}
@@ -89,6 +91,7 @@ def load_checkpoint(run_dir: Path, learner: Learner, keep_buffer: bool) -> Progr
     learner.optim_critic.load_state_dict(state["optim_critic"])
     torch.set_rng_state(state["torch_rng"])
     learner.env_generator.set_state(state["env_rng"])
+    learner.sensor_generator.set_state(state["sensor_rng"])
     if keep_buffer and "buffer" in state:
         dump = run_dir / "checkpoints" / state["buffer"]["dir"]
         if not dump.is_dir():

@@ -63,8 +63,9 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
     exploration, noise = make_exploration(cfg, actor, env, device)
     optim_actor, optim_critic = make_optimisers(cfg, loss)
     buffer = make_buffer(cfg, run_dir, device)
+    base = env.base_env
     learner = Learner(
-        actor, loss, noise, optim_actor, optim_critic, env.base_env.rng, buffer, env.base_env.observation_size
+        actor, loss, noise, optim_actor, optim_critic, base.rng, base.sensor_rng, buffer, base.observation_size
     )
     counters = load_checkpoint(run_dir, learner, cfg.checkpoint.keep_buffer) if resumed else Progress()
 

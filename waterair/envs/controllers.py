@@ -1,0 +1,128 @@
+"""Classical controllers: what an engineer builds on the link's sensors instead of RL.
+
+Each is a TensorDict policy like the baselines (:mod:`waterair.envs.baselines`) and reads only
+what the chosen sensor model delivers in the observation (docs/environment.md, "Sensing") plus
+the nominal geometry (``tx_position``, ``rx_position``) and the datasheet optics. Their
+assumptions are in their docstrings; ``required_extras`` names the observation parts they need.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from waterair.envs.baselines import FlatSeaSnell, PointingPolicy
+from waterair.envs.sensors import intensity_from_feature, receiver_frame
+from waterair.physics.optics import unit_vector
+
+
+class AoATracker(PointingPolicy):
+    """Quadrant-detector back-projection (angle of arrival).
+
+    Assumes a quadrant detector or camera behind the receiver optics that reads the spot (the
+    incoming direction in the receiver frame) with the boresight it was read with, both reaching
+    the controller in the same packet, and the nominal positions T and R.
+
+    * Receiver: boresight along the measured incoming direction (from R toward the surface point).
+    * Transmitter: the incoming ray, back-projected from R to the mean sea level z = 0, gives a
+      point P0; the transmitter points at P0 (the wave height at the true point is unknown).
+    * No reading (``spot_valid`` 0: no light, or below the detector threshold): flat-sea Snell.
+    """
+
+    name = "aoa_tracker"
+    required_extras = ("spot", "spot_valid")
+
+    def directions(self, tensordict):
+        flat_tx, flat_rx = FlatSeaSnell.directions(self, tensordict)
+        observation = tensordict.get("observation")
+        boresight = self.env.observation_part(observation, "rx_pointing")
+        spot = self.env.observation_part(observation, "spot")
+        e1, e2 = receiver_frame(boresight)
+        scale = math.tan(self.env.optics.half_fov)
+        toward_surface = unit_vector(boresight + scale * (spot[:, :1] * e1 + spot[:, 1:] * e2))
+        rx = tensordict.get("rx_position")
+        down = toward_surface[:, 2] < -1e-6
+        reach = -rx[:, 2] / torch.where(down, toward_surface[:, 2], -torch.ones_like(rx[:, 2]))
+        sea_point = rx + reach.unsqueeze(-1) * toward_surface
+        tx_dir = unit_vector(sea_point - tensordict.get("tx_position"))
+        seen = (self.env.observation_part(observation, "spot_valid")[:, 0] > 0.5) & down
+        seen = seen.unsqueeze(-1)
+        return torch.where(seen, tx_dir, flat_tx), torch.where(seen, toward_surface, flat_rx)
+
+
+class IntensityDither(PointingPolicy):
+    """Intensity-only beam triangulation for the transmitter; the receiver at flat-sea Snell.
+
+    Assumes only the measured intensity and the pointing it was measured with (one packet), the
+    nominal positions T and R, and the beam divergence ω_D from the laser's datasheet.
+
+    A Gaussian beam gives ln I = c − 2 |v − v*|² / ω_D² around the best tilt v*, which is linear in
+    (c', v*) once |v|² is moved left: three probes determine it exactly. Each step fits v* through
+    the last three (tilt, intensity) probes and points at v* plus a dither of ``radius`` × ω_D on a
+    triangle that turns by 120° per step, so the next three probes stay well conditioned. Where a
+    probe saw less than ``min_intensity``, or the fit is ill-conditioned or lands more than
+    ``max_offset`` (tilt) from flat-sea Snell, it starts again from flat-sea Snell (acquisition).
+    The controller keeps its last probes per link; a link whose time reads 0 starts afresh.
+    """
+
+    name = "intensity_dither"
+    required_extras = ()
+    PROBES = 3
+
+    def __init__(self, env, radius: float = 0.12, min_intensity: float = 1e-3, max_offset: float = 0.15):
+        super().__init__(env)
+        self.radius, self.min_intensity, self.max_offset = radius, min_intensity, max_offset
+        self.probes: torch.Tensor | None = None  # [n, PROBES, 3]: tilt x, tilt y, ln I (newest first)
+        self.count: torch.Tensor | None = None  # [n]: probes held
+        self.turn: torch.Tensor | None = None  # [n]: dither step
+
+    def directions(self, tensordict):
+        flat_tx, flat_rx = FlatSeaSnell.directions(self, tensordict)
+        observation = tensordict.get("observation")
+        tilt = self.env.observation_part(observation, "tx_pointing")[:, :2]
+        intensity = intensity_from_feature(self.env.observation_part(observation, "intensity")[:, 0])
+        self._remember(tilt, intensity, self.env.observation_part(observation, "time")[:, 0] == 0)
+        flat_tilt = flat_tx[:, :2]
+        best, usable = self._fit(flat_tilt)
+        target = torch.where(usable.unsqueeze(-1), best, flat_tilt)
+        angle = 2.0 * math.pi * (self.turn % self.PROBES) / self.PROBES
+        dither = self.radius * self.env.optics.divergence * torch.stack((torch.cos(angle), torch.sin(angle)), -1)
+        self.turn = self.turn + 1
+        tx_tilt = target + dither.to(target.dtype)
+        vertical = torch.sqrt((1.0 - (tx_tilt**2).sum(-1, keepdim=True)).clamp(min=0.0))
+        return torch.cat((tx_tilt, vertical), dim=-1), flat_rx
+
+    def _remember(self, tilt: torch.Tensor, intensity: torch.Tensor, fresh: torch.Tensor) -> None:
+        """Add this step's probe; links at their first step (or a new batch) forget older ones."""
+        rows = tilt.shape[0]
+        if self.probes is None or self.probes.shape[0] != rows:
+            self.probes = torch.zeros(rows, self.PROBES, 3, dtype=tilt.dtype, device=tilt.device)
+            self.count = torch.zeros(rows, dtype=torch.long, device=tilt.device)
+            self.turn = torch.zeros(rows, dtype=torch.long, device=tilt.device)
+        self.count = torch.where(fresh, torch.zeros_like(self.count), self.count)
+        self.turn = torch.where(fresh, torch.zeros_like(self.turn), self.turn)
+        probe = torch.cat((tilt, torch.log(intensity.clamp(min=1e-12)).unsqueeze(-1)), dim=-1)
+        self.probes = torch.cat((probe.unsqueeze(1), self.probes[:, :-1]), dim=1)
+        lit = intensity >= self.min_intensity
+        self.count = torch.where(lit, (self.count + 1).clamp(max=self.PROBES), torch.zeros_like(self.count))
+
+    def _fit(self, flat_tilt: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """v* of the Gaussian through the held probes ``[n, 2]``, and where that fit is usable ``[n]``."""
+        divergence = self.env.optics.divergence
+        scale = 4.0 / divergence**2
+        tilt, log_intensity = self.probes[..., :2], self.probes[..., 2]
+        system = torch.cat((torch.ones_like(log_intensity).unsqueeze(-1), scale * tilt), dim=-1)
+        rhs = log_intensity + 0.5 * scale * (tilt**2).sum(-1)
+        determinant = torch.linalg.det(system)
+        # 1 % of the determinant of the dither triangle itself: probes closer to a line are ignored.
+        conditioned = determinant.abs() > 0.01 * (scale * self.radius * divergence) ** 2
+        eye = torch.eye(3, dtype=system.dtype, device=system.device)
+        solution = torch.linalg.solve(system + (~conditioned).to(system.dtype)[:, None, None] * eye, rhs)
+        best = solution[:, 1:]
+        near = torch.linalg.vector_norm(best - flat_tilt, dim=-1) <= self.max_offset
+        return best, (self.count >= self.PROBES) & conditioned & near & torch.isfinite(best).all(-1)
+
+
+CONTROLLERS = {cls.name: cls for cls in (AoATracker, IntensityDither)}
+"""Classical controllers by name."""

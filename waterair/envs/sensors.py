@@ -1,0 +1,140 @@
+"""What the link's sensors report, and when (docs/environment.md, "Sensing").
+
+The receiver measures the received intensity (a photodiode) and where the light arrives on a
+quadrant detector (the ``spot``: the incoming direction in the receiver frame over tan ω_A); the
+gimbals report their pointing. These readings form one *packet* per step, which reaches the
+controller ``latency_steps`` steps late (the transmitter's share travels back over an acoustic or
+optical return link). Readings are noisy (relative and additive intensity noise, angular spot
+noise), the photodiode saturates, and below an intensity threshold the detector sees no spot.
+
+The ideal sensor (every setting 0 or None) reports the true values at once; no random numbers are
+drawn for it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from tensordict import TensorDict
+
+PACKET_PARTS = ("tx_pointing", "rx_pointing", "intensity", "spot", "spot_valid", "history")
+"""Observation parts that travel in the measurement packet, and so arrive ``latency_steps`` late."""
+INTENSITY_EPS = 1e-6
+"""Offset inside the observed intensity feature log10(I + ε), so that I = 0 maps to a finite value."""
+
+
+def intensity_feature(intensity: torch.Tensor) -> torch.Tensor:
+    """Observed intensity feature (log10(I + 1e-6) + 6) / 6: 0 for no light, ≈ 1 at calm-sea level.
+
+    Monotone in I; logarithmic because I spans many decades between aligned and lost
+    (docs/model.md §6).
+    """
+    return (torch.log10(intensity + INTENSITY_EPS) + 6.0) / 6.0
+
+
+def intensity_from_feature(feature: torch.Tensor) -> torch.Tensor:
+    """The inverse of :func:`intensity_feature`: the intensity I ≥ 0 a feature stands for."""
+    return (10.0 ** (6.0 * feature - 6.0) - INTENSITY_EPS).clamp(min=0.0)
+
+
+def spot_position(arrival: torch.Tensor, boresight: torch.Tensor, half_fov: float) -> torch.Tensor:
+    """Incoming direction −u_a in the receiver frame over tan ω_A, ``[n, 2]`` (docs/model.md §6).
+
+    The frame: e1 is +x projected across the boresight, e2 = boresight × e1. Within ±1 inside the
+    field of view.
+    """
+    incoming = -arrival
+    along = (incoming * boresight).sum(-1, keepdim=True)
+    across = incoming - along * boresight
+    e1, e2 = receiver_frame(boresight)
+    return torch.stack(((across * e1).sum(-1), (across * e2).sum(-1)), -1) / (
+        along.clamp(min=1e-6) * math.tan(half_fov)
+    )
+
+
+def receiver_frame(boresight: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The two unit axes (e1, e2) across the receiver boresight ``[n, 3]`` in which the spot is read."""
+    east = torch.zeros_like(boresight)
+    east[:, 0] = 1.0
+    e1 = east - (east * boresight).sum(-1, keepdim=True) * boresight
+    e1 = e1 / torch.linalg.vector_norm(e1, dim=-1, keepdim=True)
+    return e1, torch.linalg.cross(boresight, e1, dim=-1)
+
+
+class Sensor:
+    """The sensor settings of one environment and the readings they turn true values into.
+
+    Args:
+        latency_steps: steps a packet takes to reach the controller (0: the present model).
+        intensity_noise: relative standard deviation of the measured intensity.
+        intensity_noise_floor: additive standard deviation (units of I: the detector floor).
+        intensity_saturation: the largest measurable I, or None.
+        spot_noise_rad: standard deviation of each spot component, as an angle (rad).
+        spot_threshold: measured I below which the spot reads nothing (``spot_valid`` 0, spot 0).
+        half_fov: receiver half field of view ω_A (rad), the spot's scale.
+        generator: the CPU generator of the noise (its own, so that noise never shifts the seas).
+    """
+
+    def __init__(
+        self,
+        latency_steps: int,
+        intensity_noise: float,
+        intensity_noise_floor: float,
+        intensity_saturation: float | None,
+        spot_noise_rad: float,
+        spot_threshold: float,
+        half_fov: float,
+        generator: torch.Generator,
+    ):
+        self.latency_steps = latency_steps
+        self.intensity_noise, self.intensity_noise_floor = intensity_noise, intensity_noise_floor
+        self.intensity_saturation = intensity_saturation
+        self.spot_noise = spot_noise_rad / math.tan(half_fov)
+        self.spot_threshold = spot_threshold
+        self.generator = generator
+
+    def intensity(self, true: torch.Tensor) -> torch.Tensor:
+        """Measured intensity ``[n]``: I (1 + σ_rel n1) + σ_floor n2, clipped to [0, saturation]."""
+        measured = true
+        if self.intensity_noise or self.intensity_noise_floor:
+            noise = self._normal(true, 2)
+            measured = (
+                true * (1.0 + self.intensity_noise * noise[:, 0]) + self.intensity_noise_floor * noise[:, 1]
+            ).clamp(min=0.0)
+        if self.intensity_saturation is not None:
+            measured = measured.clamp(max=self.intensity_saturation)
+        return measured
+
+    def spot(self, true: torch.Tensor, lit: torch.Tensor, measured_intensity: torch.Tensor):
+        """Spot reading ``[n, 2]`` and its validity ``[n]`` (float 0/1): noisy where light is seen, else 0."""
+        valid = lit & (measured_intensity >= self.spot_threshold)
+        reading = true
+        if self.spot_noise:
+            reading = true + self.spot_noise * self._normal(true, 2)
+        reading = torch.where(valid.unsqueeze(-1), reading, torch.zeros_like(reading))
+        return reading, valid.to(true.dtype)
+
+    def _normal(self, like: torch.Tensor, columns: int) -> torch.Tensor:
+        draws = torch.randn(like.shape[0], columns, generator=self.generator, dtype=torch.float64)
+        return draws.to(device=like.device, dtype=like.dtype)
+
+
+class PacketDelay:
+    """The last ``latency_steps + 1`` packets of every link; the oldest is what the controller sees."""
+
+    def __init__(self, latency_steps: int, template: TensorDict):
+        self.slots = latency_steps + 1
+        batch = template.batch_size[0]
+        self.packets = template.unsqueeze(1).expand(batch, self.slots).clone()
+
+    def push(self, rows: torch.Tensor, packet: TensorDict, fill: bool = False) -> None:
+        """Add ``packet`` (``[n]``) for ``rows``; ``fill`` replaces every slot (a reset: no older packet)."""
+        if fill or self.slots == 1:
+            self.packets[rows] = packet.unsqueeze(1).expand(packet.batch_size[0], self.slots)
+            return
+        self.packets[rows] = torch.cat((packet.unsqueeze(1), self.packets[rows][:, :-1]), dim=1)
+
+    def delivered(self) -> TensorDict:
+        """The packet each link's controller sees now, ``[B]``."""
+        return self.packets[:, -1]
