@@ -48,12 +48,16 @@ EVAL_TINY = [
     "scenarios.S3.winds=[6.0,12.0]",
     "scenarios.S3.realisations=2",
     "scenarios.S3.steps=8",
+    "scenarios.S4.azimuths_deg=[0.0,90.0]",
+    "scenarios.S4.realisations=2",
+    "scenarios.S4.steps=8",
 ]
 FIGURES = (
     "gain_vs_time",
     "gain_vs_offset",
     "sigma_diff_vs_offset",
     "gain_vs_wind",
+    "gain_vs_azimuth",
     "jonswap_spectrum",
     "jonswap_directional",
     "wave_surface",
@@ -92,12 +96,12 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert {p.name for p in written} >= {"metrics.json", "metrics.csv", "report.md"}
 
     data = json.loads((tmp_path / "metrics.json").read_text())
-    assert data["schema_version"] == 1
+    assert data["schema_version"] == 2
     labels = [p["label"] for p in data["policies"]]
     references = ["tracking", "aoa_tracker", "intensity_dither", "flat_snell", "straight_facing", "no_alignment"]
     assert labels[0] == "upper_bound" and labels[2:] == references
     assert data["policies"][1]["kind"] == "learned" and data["policies"][1]["frames"] == 800
-    points = {"S1": 1, "S2": 2, "S3": 2}
+    points = {"S1": 1, "S2": 2, "S3": 2, "S4": 2}
     assert {s["name"]: len(s["points"]) for s in data["scenarios"]} == points
     assert len(data["rows"]) == sum(points.values()) * len(labels)
     for row in data["rows"]:
@@ -140,11 +144,11 @@ def test_every_policy_sees_the_same_seas_and_stays_under_the_upper_bound(tiny_ru
 def test_one_batch_for_all_policies_gives_the_same_numbers_as_one_rollout_each(tmp_path):
     policy = write_policy(tmp_path / "policy.pt", observation_size=8)
     lines = {True: [], False: []}
+    skip = ("scenarios.S3=null", "scenarios.S4=null")
     results = [
-        evaluate(eval_cfg(f"checkpoint={policy}", f"batch_policies={together}", "scenarios.S3=null"),
-                 progress=lines[together].append)
+        evaluate(eval_cfg(f"checkpoint={policy}", f"batch_policies={together}", *skip), progress=lines[together].append)
         for together in (True, False)
-    ]  # fmt: skip
+    ]
     # one progress line per rollout, each with its own duration: S1 and S2 × (the baselines and
     # controllers together, the policy with its own observation), or S1 and S2 × 7 policies one at a time
     assert len(lines[True]) == 2 * 2 and len(lines[False]) == 2 * 7

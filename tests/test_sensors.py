@@ -135,3 +135,29 @@ def test_the_controllers_beat_flat_snell_at_12_m_s():
         ratios[policy.name] = (out["gain"].double().mean() / out["gain_upper_bound"].double().mean()).item()
     assert ratios["aoa_tracker"] > 0.93 and ratios["intensity_dither"] > 0.75
     assert ratios["intensity_dither"] > ratios["flat_snell"] + 0.05, ratios
+
+
+def test_rotating_the_whole_scene_leaves_flat_snell_and_the_upper_bound_unchanged():
+    """Drone azimuth and wind direction turned by the same angle: the same link, seen rotated."""
+    traces = []
+    for angle in (0.0, 120.0):
+        env = WaterAirEnv(
+            num_envs=24, seed=9, n_freq=32, n_dir=16, offset_azimuth_values=(angle,), wind_direction_values=(angle,)
+        )
+        out = env.rollout(60, FlatSeaSnell(env), break_when_any_done=False)["next"]
+        traces.append((out["gain"].double(), out["gain_upper_bound"].double()))
+    (gain_a, upper_a), (gain_b, upper_b) = traces
+    torch.testing.assert_close(upper_b.mean(), upper_a.mean(), rtol=1e-3, atol=0)
+    torch.testing.assert_close(gain_b.mean(), gain_a.mean(), rtol=1e-3, atol=0)
+    assert not torch.allclose(upper_a, WaterAirEnv(num_envs=24, seed=9, n_freq=32, n_dir=16, offset_azimuth_deg=120.0)
+                              .rollout(60, break_when_any_done=False)["next", "gain_upper_bound"].double())  # fmt: skip
+
+
+def test_per_link_azimuth_and_wind_direction_are_drawn_from_their_ranges():
+    env = WaterAirEnv(**SMALL, num_envs=64, offset_azimuth_range=(0.0, 360.0), wind_direction_range=(-90.0, 90.0))
+    rx = env.reset()["rx_position"]
+    azimuth = torch.rad2deg(torch.atan2(rx[:, 1], rx[:, 0])) % 360
+    assert azimuth.std() > 60  # spread around the circle, not all at 0
+    torch.testing.assert_close(torch.linalg.vector_norm(rx[:, :2], dim=-1), torch.full((64,), 2.0), rtol=1e-5, atol=0)
+    heading = torch.rad2deg(torch.atan2(env.surface.ky, env.surface.kx))  # per harmonic: wind ± 90°
+    assert heading.abs().max() <= 180.0 + 1e-3 and heading.std() > 30

@@ -7,6 +7,8 @@ meaningful. Timings are wall-clock medians after a warm-up.
   evaluations per second, the sin+cos floor and the solve-to-floor ratio (:mod:`.physics`).
 * ``env``: raw ``env.step`` loop and TorchRL ``rollout`` env-steps per second and peak memory per
   batch size, with the floor ratio (:mod:`.env`).
+* ``controllers``: the step time the classical controllers and the realistic sensor add over the
+  flat-sea Snell baseline (:mod:`.controllers`).
 * ``evaluate``: the default evaluation (shipped policy, every baseline, S1-S3), all policies in
   one batch against one rollout per policy (:mod:`.evaluate`).
 
@@ -21,6 +23,7 @@ from pathlib import Path
 import torch
 
 from waterair.bench.common import machine
+from waterair.bench.controllers import bench_controllers, controllers_table
 from waterair.bench.env import ENV_HEADER, bench_env
 from waterair.bench.evaluate import bench_evaluate, evaluate_table
 from waterair.bench.physics import bench_physics, physics_table
@@ -49,9 +52,13 @@ def main(argv: list[str] | None = None) -> int:
         "--centroid-sizes", type=int, nargs="*", default=[1, 16], help="batch sizes for the centroid solver"
     )
     evaluation = sub.add_parser("evaluate", help="the default evaluate.py work, batched vs one policy at a time")
+    controllers = sub.add_parser("controllers", help="step time the classical controllers and sensors add")
+    controllers.add_argument("--batch", type=int, default=1024, help="batch size B")
+    controllers.add_argument("--steps", type=int, default=50, help="steps per timed rollout")
+    controllers.add_argument("--repeats", type=int, default=3, help="timed rollouts per policy (median reported)")
     for p in (physics, env):
         p.add_argument("--dtype", choices=["float32", "float64"], default="float32")
-    for p in (physics, env, evaluation):
+    for p in (physics, env, evaluation, controllers):
         p.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto")
         p.add_argument("--compile", action="store_true", help="evaluate the surface through torch.compile")
         p.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
@@ -64,6 +71,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.suite == "evaluate":
         record = {"machine": machine(device, torch.float32), **bench_evaluate(args.device, args.compile)}
         print(evaluate_table(record))
+    elif args.suite == "controllers":
+        record = bench_controllers(args.batch, args.steps, args.repeats, args.compile, args.device)
+        print(controllers_table(record))
     elif args.suite == "env":
         print(f"env benchmark: {device}, {'compiled' if args.compile else 'eager'} surface kernel\n\n{ENV_HEADER}")
         record = bench_env(args.sizes, args.centroid_sizes, args.compile, args.device, args.dtype)

@@ -20,6 +20,13 @@ from waterair.physics.paths import METHODS
 from waterair.physics.sea import SeaState
 
 ACTION_MODES = ("absolute", "delta")
+PER_LINK = {
+    "wind": (0.0, 60.0, "m/s"),
+    "offset": (0.0, 10.0, ""),
+    "offset_azimuth": (-360.0, 360.0, "deg"),
+    "wind_direction": (-360.0, 360.0, "deg"),
+}
+"""Quantities each link may draw from ``<name>_range`` or take from ``<name>_values``: (low, high, unit)."""
 OBSERVATION_EXTRAS = ("spot", "spot_valid", "history", "action_history", "geometry")
 """Opt-in observation parts, in the order they follow the paper's 8 (docs/environment.md)."""
 DTYPES = ("float32", "float64")
@@ -74,10 +81,14 @@ class EnvConfig:
     # domain randomisation: per-link values drawn uniformly at every reset, or None
     wind_range: tuple[float, float] | None = None  # m/s
     offset_range: tuple[float, float] | None = None  # offset ratio
+    offset_azimuth_range: tuple[float, float] | None = None  # deg: the drone anywhere around the transmitter
+    wind_direction_range: tuple[float, float] | None = None  # deg: wind from any direction
     # per-link scenario values (evaluation grids): link i uses values[i % len(values)], or None.
-    # Given together, both lists have one entry per scenario point (link i is point i % len).
+    # Given together, the lists have one entry per scenario point (link i is point i % len).
     wind_values: tuple[float, ...] | None = None  # m/s
     offset_values: tuple[float, ...] | None = None  # offset ratio
+    offset_azimuth_values: tuple[float, ...] | None = None  # deg
+    wind_direction_values: tuple[float, ...] | None = None  # deg
     # the batch is `replicas` copies of num_envs / replicas links with identical seas (paired comparisons)
     replicas: int = 1
     # torch.compile the surface kernel (one-off ~30-60 s, ~5x faster CPU steps). Not "compile":
@@ -112,24 +123,26 @@ class EnvConfig:
                 f"env.replicas = {self.replicas} is not allowed; it must divide env.num_envs = {self.num_envs}"
             )
         check_choice("env.solver", self.solver, METHODS)
-        if self.wind_range is not None:
-            object.__setattr__(self, "wind_range", _check_pair("env.wind_range", self.wind_range, 0.0, 60.0, "m/s"))
-        if self.offset_range is not None:
-            object.__setattr__(self, "offset_range", _check_pair("env.offset_range", self.offset_range, 0.0, 10.0, ""))
-        self._check_values("wind", 60.0, "m/s")
-        self._check_values("offset", 10.0, "")
-        if self.wind_values and self.offset_values and len(self.wind_values) != len(self.offset_values):
-            raise ValueError(
-                f"env.wind_values has {len(self.wind_values)} entries and env.offset_values "
-                f"{len(self.offset_values)}; given together they must have one entry per scenario point"
-            )
+        for name, (low, high, unit) in PER_LINK.items():
+            range_key = f"{name}_range"
+            if getattr(self, range_key) is not None:
+                pair = _check_pair(f"env.{range_key}", getattr(self, range_key), low, high, unit, name == "wind")
+                object.__setattr__(self, range_key, pair)
+            self._check_values(name, low, high, unit)
+        lengths = {
+            f"env.{n}_values": len(getattr(self, f"{n}_values")) for n in PER_LINK if getattr(self, f"{n}_values")
+        }
+        if len(set(lengths.values())) > 1:
+            (first, count), *others = lengths.items()
+            given = f"{first} has {count} entries and " + ", ".join(f"{key} {n}" for key, n in others)
+            raise ValueError(f"{given}; given together they must have one entry per scenario point")
         for build in (self.sea, self.link, self.transceiver):
             try:
                 build()
             except ValueError as error:
                 raise ValueError(f"env.{error}") from None
 
-    def _check_values(self, name: str, high: float, unit: str) -> None:
+    def _check_values(self, name: str, low: float, high: float, unit: str) -> None:
         key, values = f"{name}_values", getattr(self, f"{name}_values")
         if values is None:
             return
@@ -139,7 +152,7 @@ class EnvConfig:
         if getattr(self, f"{name}_range") is not None:
             raise ValueError(f"env.{key} and env.{name}_range are both set; use one of them")
         for index, value in enumerate(values):
-            check_range(f"env.{key}[{index}]", value, 0.0, high, low_open=(name == "wind"), unit=unit)
+            check_range(f"env.{key}[{index}]", value, low, high, low_open=(name == "wind"), unit=unit)
         object.__setattr__(self, key, tuple(float(v) for v in values))
 
     @classmethod
@@ -221,10 +234,12 @@ class EnvConfig:
         return self.dt * self.max_steps
 
 
-def _check_pair(name: str, pair: Sequence[float], low: float, high: float, unit: str) -> tuple[float, float]:
+def _check_pair(
+    name: str, pair: Sequence[float], low: float, high: float, unit: str, low_open: bool
+) -> tuple[float, float]:
     if len(pair) != 2:
         raise ValueError(f"{name} = {list(pair)!r} must be [low, high]")
-    lo = check_range(f"{name}[0]", pair[0], low, high, low_open=(name == "env.wind_range"), unit=unit)
+    lo = check_range(f"{name}[0]", pair[0], low, high, low_open=low_open, unit=unit)
     hi = check_range(f"{name}[1]", pair[1], lo, high, unit=unit)
     return lo, hi
 

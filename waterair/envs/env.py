@@ -273,12 +273,21 @@ class WaterAirEnv(EnvBase):
         # Replicas share their random draws: draw once per distinct link, then copy to each replica.
         distinct, copy = torch.unique(rows % (config.num_envs // config.replicas), return_inverse=True)
         wind = self._per_link(config.wind_range, config.wind_values, None, distinct)
+        direction = self._per_link(config.wind_direction_range, config.wind_direction_values, None, distinct)
         surface = WaveSurface.sample(
-            self.sea, distinct.numel(), generator=self._generator, device=self.device, dtype=dtype, wind=wind
+            self.sea,
+            distinct.numel(),
+            generator=self._generator,
+            device=self.device,
+            dtype=dtype,
+            wind=wind,
+            wind_direction_deg=direction,
         )
         self.surface[rows] = surface[copy.to(self.device)] if config.replicas > 1 else surface
         offset = self._per_link(config.offset_range, config.offset_values, config.offset_ratio, distinct)[copy.cpu()]
-        tx, rx = (v.to(self.device, dtype) for v in self.link.positions_for(offset))
+        azimuth = self._per_link(config.offset_azimuth_range, config.offset_azimuth_values, None, distinct)
+        azimuth = None if azimuth is None else azimuth[copy.cpu()]
+        tx, rx = (v.to(self.device, dtype) for v in self.link.positions_for(offset, azimuth))
         self.tx_position[rows], self.rx_position[rows] = tx, rx
         self.reference_gain[rows] = calm_sea_gains(tx.double(), rx.double(), self.optics).to(dtype)
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)

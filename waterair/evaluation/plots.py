@@ -18,6 +18,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 STYLES = {
     "bound": ("black", "o", (0, (6, 3)), 1.6),
     "tracking": ("tab:purple", "v", ":", 1.4),
+    "aoa_tracker": ("tab:pink", "p", (0, (5, 1)), 1.6),
+    "intensity_dither": ("tab:brown", "d", (0, (3, 1, 1, 1, 1, 1)), 1.4),
     "flat_snell": ("tab:green", "s", "--", 1.4),
     "straight_facing": ("tab:orange", "^", "-.", 1.3),
     "no_alignment": ("tab:gray", "x", (0, (1, 1)), 1.2),
@@ -45,6 +47,8 @@ def evaluation_figures(result, out: Path) -> list[Path]:
         written.append(sigma_diff_vs_offset(result, out / "sigma_diff_vs_offset.png"))
     if "S3" in names:
         written.append(gain_vs_sweep(result, "S3", out / "gain_vs_wind.png"))
+    if "S4" in names:
+        written.append(gain_vs_sweep(result, "S4", out / "gain_vs_azimuth.png"))
     return written
 
 
@@ -73,7 +77,7 @@ def gain_vs_time(result, path: Path) -> Path:
 
 
 def gain_vs_sweep(result, name: str, path: Path) -> Path:
-    """S2 or S3: mean gain with its interval (top) and the ratio to the upper bound (bottom) per point."""
+    """S2, S3 or S4: mean gain with its interval (top) and the ratio to the upper bound (bottom) per point."""
     scenario = _scenario(result, name)
     x = _axis_values(scenario)
     fig, axes = plt.subplots(2, 1, figsize=(8, 7.5), sharex=True)
@@ -123,16 +127,20 @@ def _scenario(result, name: str):
 
 def _rows(result, name: str, label: str) -> list[dict]:
     scenario = _scenario(result, name)
-    return [result.row(name, label, wind, offset) for wind, offset in scenario.points]
+    return [result.row(name, label, point) for point in scenario.points]
 
 
 def _axis_values(scenario) -> list[float]:
-    index = 1 if scenario.axis == "offset_ratio" else 0
+    index = ("wind", "offset_ratio", "offset_azimuth_deg").index(scenario.axis)
     return [point[index] * (100.0 if index == 1 else 1.0) for point in scenario.points]
 
 
 def _axis_label(scenario) -> str:
-    return "horizontal offset (% of the vertical distance)" if scenario.axis == "offset_ratio" else "wind U10 (m/s)"
+    return {
+        "offset_ratio": "horizontal offset (% of the vertical distance)",
+        "wind": "wind U10 (m/s)",
+        "offset_azimuth_deg": "drone azimuth from the wind direction (deg)",
+    }[scenario.axis]
 
 
 def _style(result, policy: dict) -> tuple:
@@ -140,7 +148,7 @@ def _style(result, policy: dict) -> tuple:
     if policy["kind"] == "bound":
         return STYLES["bound"]
     if policy["kind"] == "baseline":
-        return STYLES.get(policy["label"], ("tab:brown", "d", "-", 1.2))
+        return STYLES.get(policy["label"], ("tab:olive", "1", "-", 1.2))
     learned = [p["label"] for p in result.policies if p["kind"] == "learned"]
     return LEARNED_STYLES[learned.index(policy["label"]) % len(LEARNED_STYLES)]
 

@@ -13,11 +13,14 @@ from waterair.evaluation.figures import physics_figures
 from waterair.evaluation.metrics import METRICS
 from waterair.evaluation.runner import UPPER_BOUND, Evaluation
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+AXES = ("wind", "offset_ratio", "offset_azimuth_deg")
+"""The three coordinates of a scenario point, in order."""
 ROW_KEYS = (
     "scenario",
     "wind",
     "offset_ratio",
+    "offset_azimuth_deg",
     "policy",
     "kind",
     *(f"{name}{suffix}" for name in METRICS for suffix in ("", "_lo", "_hi")),
@@ -54,7 +57,7 @@ def _write_json(result: Evaluation, path: Path, cfg: DictConfig) -> Path:
                 "name": s.name,
                 "title": s.title,
                 "axis": s.axis,
-                "points": [{"wind": w, "offset_ratio": o} for w, o in s.points],
+                "points": [{"wind": w, "offset_ratio": o, "offset_azimuth_deg": a} for w, o, a in s.points],
                 "realisations": s.realisations,
                 "steps": s.steps,
                 "seed": s.seed,
@@ -96,27 +99,29 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
             "",
         ]
         if scenario.axis is None:
-            wind, offset = scenario.points[0]
+            point = scenario.points[0]
             lines += [
                 "| policy | mean G (m⁻²) | ratio to UB | σ²_diff (m⁻⁴) | outage | valid paths |",
                 "|---|---|---|---|---|---|",
             ]
             for policy in result.policies:
-                r = result.row(scenario.name, policy["label"], wind, offset)
+                r = result.row(scenario.name, policy["label"], point)
                 lines.append(
                     f"| {policy['label']} | {r['mean_gain']:.4g} [{r['mean_gain_lo']:.4g}, {r['mean_gain_hi']:.4g}] "
                     f"| {r['ratio_to_ub']:.3f} | {r['sigma2_diff']:.3g} | {r['outage']:.2%} | {r['valid_share']:.1%} |"
                 )
         else:
-            column = "offset" if scenario.axis == "offset_ratio" else "U10 (m/s)"
-            values = [o if scenario.axis == "offset_ratio" else w for w, o in scenario.points]
+            column = {"offset_ratio": "offset", "wind": "U10 (m/s)", "offset_azimuth_deg": "azimuth (deg)"}[
+                scenario.axis
+            ]
+            values = [dict(zip(AXES, p, strict=True))[scenario.axis] for p in scenario.points]
             labels = [p["label"] for p in result.policies]
             lines += ["Ratio to the upper bound (σ²_diff in m⁻⁴ below it):", ""]
             lines += [f"| {column} | " + " | ".join(labels) + " |", "|---" * (len(labels) + 1) + "|"]
-            for (wind, offset), value in zip(scenario.points, values, strict=True):
+            for point, value in zip(scenario.points, values, strict=True):
                 cells = []
                 for label in labels:
-                    r = result.row(scenario.name, label, wind, offset)
+                    r = result.row(scenario.name, label, point)
                     cells.append(f"{r['ratio_to_ub']:.3f}<br>{r['sigma2_diff']:.2g}")
                 shown = f"{value:.0%}" if scenario.axis == "offset_ratio" else f"{value:g}"
                 lines.append(f"| {shown} | " + " | ".join(cells) + " |")

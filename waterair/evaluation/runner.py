@@ -71,11 +71,12 @@ class Evaluation:
     def device(self) -> str:
         return self.env.device
 
-    def row(self, scenario: str, policy: str, wind: float, offset: float) -> dict:
+    def row(self, scenario: str, policy: str, point: tuple[float, float, float]) -> dict:
+        """The row of ``policy`` at ``point`` (wind, offset ratio, azimuth) of ``scenario``."""
         for row in self.rows:
-            if (row["scenario"], row["policy"], row["wind"], row["offset_ratio"]) == (scenario, policy, wind, offset):
+            if row["scenario"] == scenario and row["policy"] == policy and _point(row) == tuple(point):
                 return row
-        raise KeyError((scenario, policy, wind, offset))
+        raise KeyError((scenario, policy, point))
 
 
 def compare_policies(
@@ -236,18 +237,21 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
     """Traces ``[R, P, T]`` (CPU) per member ``(label, policy or baseline name)``, all on the same seas.
 
     The members run as replicas of one environment seeded with ``seed``, greedily (no exploration
-    noise), over ``points`` (wind m/s, offset ratio) × ``realisations`` links for ``steps`` steps.
+    noise), over ``points`` (wind m/s, offset ratio, azimuth deg) × ``realisations`` links for
+    ``steps`` steps.
     """
     links = len(points) * realisations
-    winds, offsets = zip(*points, strict=True)
+    winds, offsets, azimuths = zip(*points, strict=True)
     env = WaterAirEnv(
         env_config.replace(
             num_envs=links * len(members),
             replicas=len(members),
             wind_values=winds,
             offset_values=offsets,
+            offset_azimuth_values=azimuths,
             wind_range=None,
             offset_range=None,
+            offset_azimuth_range=None,
         )
     )
     policies = [REFERENCES[policy](env) if isinstance(policy, str) else policy for _, policy in members]
@@ -269,7 +273,7 @@ def _collect(result: Evaluation, scenario: Scenario, runs: dict[str, dict], boot
     first = next(iter(runs.values()))
     runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
     kinds = {p["label"]: p["kind"] for p in result.policies}
-    for index, (wind, offset) in enumerate(scenario.points):
+    for index, (wind, offset, azimuth) in enumerate(scenario.points):
         for label in kinds:
             t = runs[label]
             result.rows.append(
@@ -277,6 +281,7 @@ def _collect(result: Evaluation, scenario: Scenario, runs: dict[str, dict], boot
                     "scenario": scenario.name,
                     "wind": wind,
                     "offset_ratio": offset,
+                    "offset_azimuth_deg": azimuth,
                     "policy": label,
                     "kind": kinds[label],
                     **_point_metrics(t, index, bootstrap),
@@ -337,3 +342,7 @@ def _unique_labels(policies: Sequence[LearnedPolicy]) -> None:
         seen[policy.label] = count + 1
         if count:
             policy.label = f"{policy.label} #{count + 1}"
+
+
+def _point(row: dict) -> tuple[float, float, float]:
+    return row["wind"], row["offset_ratio"], row["offset_azimuth_deg"]

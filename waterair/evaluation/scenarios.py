@@ -1,8 +1,11 @@
-"""Evaluation scenarios S1-S3 (docs/evaluation.md): which (wind, offset) points, how many seas, how long.
+"""Evaluation scenarios S1-S4 (docs/evaluation.md): which points, how many seas, how long.
+
+A point is (wind U10 in m/s, offset ratio, drone azimuth in degrees from the wind direction +x).
 
 * S1: a time trace at one point (the paper's "gain over time").
 * S2: a horizontal-offset sweep (the paper's "average gain" and "σ²_diff").
 * S3: a wind sweep (the paper's planned study).
+* S4: a sweep of the drone's azimuth around the transmitter (the sea is not isotropic).
 """
 
 from __future__ import annotations
@@ -16,19 +19,19 @@ from waterair.core.validation import check_int, check_range
 
 @dataclass(frozen=True)
 class Scenario:
-    """One evaluation scenario: points (wind m/s, offset ratio), each over the same realisations."""
+    """One evaluation scenario: points (wind m/s, offset ratio, azimuth deg), each over the same realisations."""
 
     name: str
     title: str
-    axis: str | None  # the swept quantity ("offset_ratio" or "wind"); None for the S1 time trace
-    points: tuple[tuple[float, float], ...]
+    axis: str | None  # the swept quantity: "offset_ratio", "wind" or "offset_azimuth_deg"; None for S1
+    points: tuple[tuple[float, float, float], ...]
     realisations: int
     steps: int
     seed: int
 
 
 def scenarios_from_config(cfg: DictConfig) -> list[Scenario]:
-    """S1 (time trace), S2 (offset sweep) and S3 (wind sweep) from ``cfg.scenarios``; null skips one."""
+    """S1 (time trace), S2 (offset), S3 (wind) and S4 (azimuth) from ``cfg.scenarios``; null (or absent) skips one."""
     spec, out = cfg.scenarios, []
 
     def common(name):
@@ -43,17 +46,24 @@ def scenarios_from_config(cfg: DictConfig) -> list[Scenario]:
         wind = check_range("scenarios.S1.wind", spec.S1.wind, 0.0, 60.0, low_open=True, unit="m/s")
         offset = check_range("scenarios.S1.offset_ratio", spec.S1.offset_ratio, 0.0, 10.0)
         title = f"S1: gain over time, U10 = {wind:g} m/s, offset {offset:.0%}"
-        out.append(Scenario("S1", title, None, ((wind, offset),), *common("S1")))
+        out.append(Scenario("S1", title, None, ((wind, offset, 0.0),), *common("S1")))
     if spec.get("S2") is not None:
         wind = check_range("scenarios.S2.wind", spec.S2.wind, 0.0, 60.0, low_open=True, unit="m/s")
         offsets = _grid("scenarios.S2.offset_ratios", spec.S2.offset_ratios, 0.0, 10.0, "")
         title = f"S2: horizontal offset sweep, U10 = {wind:g} m/s"
-        out.append(Scenario("S2", title, "offset_ratio", tuple((wind, o) for o in offsets), *common("S2")))
+        out.append(Scenario("S2", title, "offset_ratio", tuple((wind, o, 0.0) for o in offsets), *common("S2")))
     if spec.get("S3") is not None:
         offset = check_range("scenarios.S3.offset_ratio", spec.S3.offset_ratio, 0.0, 10.0)
         winds = _grid("scenarios.S3.winds", spec.S3.winds, 0.0, 60.0, "m/s", low_open=True)
         title = f"S3: wind sweep, offset {offset:.0%}"
-        out.append(Scenario("S3", title, "wind", tuple((w, offset) for w in winds), *common("S3")))
+        out.append(Scenario("S3", title, "wind", tuple((w, offset, 0.0) for w in winds), *common("S3")))
+    if spec.get("S4") is not None:
+        wind = check_range("scenarios.S4.wind", spec.S4.wind, 0.0, 60.0, low_open=True, unit="m/s")
+        offset = check_range("scenarios.S4.offset_ratio", spec.S4.offset_ratio, 0.0, 10.0)
+        azimuths = _grid("scenarios.S4.azimuths_deg", spec.S4.azimuths_deg, -360.0, 360.0, "deg")
+        title = f"S4: drone azimuth sweep, U10 = {wind:g} m/s, offset {offset:.0%}"
+        points = tuple((wind, offset, a) for a in azimuths)
+        out.append(Scenario("S4", title, "offset_azimuth_deg", points, *common("S4")))
     if not out:
         raise ValueError("scenarios: every scenario is null; nothing to evaluate")
     return out

@@ -60,14 +60,21 @@ class LinkGeometry:
         tx, rx = self.positions_for(torch.tensor([self.offset_ratio], dtype=torch.float64))
         return tx[0].to(device, dtype), rx[0].to(device, dtype)
 
-    def positions_for(self, offset_ratio: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """T and R ``[n, 3]`` (m) for per-link offset ratios ``[n]`` (domain randomisation), in their dtype."""
+    def positions_for(
+        self, offset_ratio: torch.Tensor, azimuth_deg: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """T and R ``[n, 3]`` (m) for per-link offset ratios ``[n]`` and azimuths ``[n]`` (deg), in their dtype.
+
+        Without ``azimuth_deg`` every link has :attr:`offset_azimuth_deg`.
+        """
         distance = offset_ratio * (self.tx_depth + self.rx_height)
-        phi = math.radians(self.offset_azimuth_deg)
+        if azimuth_deg is None:
+            azimuth_deg = torch.full_like(offset_ratio, self.offset_azimuth_deg)
+        phi = torch.deg2rad(azimuth_deg.to(offset_ratio))
         tx = torch.zeros(*offset_ratio.shape, 3, dtype=offset_ratio.dtype, device=offset_ratio.device)
         tx[..., 2] = -self.tx_depth
         rx = torch.stack(
-            (distance * math.cos(phi), distance * math.sin(phi), torch.full_like(distance, self.rx_height)), -1
+            (distance * torch.cos(phi), distance * torch.sin(phi), torch.full_like(distance, self.rx_height)), -1
         )
         return tx, rx
 

@@ -95,6 +95,7 @@ class WaveSurface(TensorClass):
         device: torch.device | str | None = None,
         dtype: torch.dtype = torch.float32,
         wind: torch.Tensor | None = None,
+        wind_direction_deg: torch.Tensor | None = None,
     ) -> WaveSurface:
         """Draw ``batch_size`` independent realisations of ``sea``.
 
@@ -104,7 +105,8 @@ class WaveSurface(TensorClass):
         generator seeded with ``seed`` (nondeterministic when both are None); they are drawn on
         the generator's device in float64, so a seed gives the same sea on CPU and CUDA.
         ``wind`` (m/s, ``[batch_size]``) gives each realisation its own wind speed (domain
-        randomisation); the other sea parameters are shared.
+        randomisation), and ``wind_direction_deg`` (degrees from +x, ``[batch_size]``) its own wind
+        direction; the other sea parameters are shared.
         """
         batch = check_int("batch_size", batch_size, 1)
         if generator is None:
@@ -124,7 +126,11 @@ class WaveSurface(TensorClass):
         omega = edges[:, :-1] + jitter * d_omega
         amplitude = sea.amplitudes(omega, d_omega, wind)
         theta, _ = sea.directions(torch.float64, draw_device)
-        heading = theta + math.radians(sea.wind_direction_deg)
+        if wind_direction_deg is None:
+            heading = theta + math.radians(sea.wind_direction_deg)
+        else:
+            direction = torch.deg2rad(wind_direction_deg.to(device=draw_device, dtype=torch.float64))
+            heading = (theta + direction.expand(batch).unsqueeze(-1)).unsqueeze(1)  # [batch, 1, n_dir]
         wavenumber = (omega**2 / GRAVITY).unsqueeze(-1)
         kx = wavenumber * torch.cos(heading)
         ky = wavenumber * torch.sin(heading)

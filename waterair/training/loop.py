@@ -150,7 +150,7 @@ def final_evaluation(cfg: DictConfig, actor) -> dict[str, float]:
     ``<policy>/<metric>`` with the policy ``agent``, ``straight_facing``, ``flat_snell`` or
     ``upper_bound``.
     """
-    point = ((float(cfg.env.wind), float(cfg.env.offset_ratio)),)
+    point = ((float(cfg.env.wind), float(cfg.env.offset_ratio), float(cfg.env.offset_azimuth_deg)),)
     scenario = Scenario("train", "training point", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
     results = compare_policies(env_config(cfg), {"agent": actor, **FINAL_POLICIES}, scenario)
     keep = (*METRICS, "mean_gain_lo", "mean_gain_hi")
