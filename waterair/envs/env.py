@@ -46,15 +46,23 @@ class WaterAirEnv(EnvBase):
     **Observation** ``[B, 8]``: transmitter pointing (3), receiver pointing (3), the intensity
     feature (log10(I + 1e-6) + 6) / 6 (1), relative time t / T_episode (1). Opt-in extras, in this
     order: ``spot`` (2: where the arrival spot sits on a quadrant detector, the arriving ray's
-    direction in the receiver frame divided by tan ω_A; 0 when no light arrives) and ``history``
-    (``history_length`` previous intensity features, newest first).
+    direction in the receiver frame divided by tan ω_A), ``spot_valid`` (1: 0 with no reading, the
+    spot then 0), ``history`` (``history_length`` previous intensity features, newest first),
+    ``action_history`` (the last ``history_length`` actions, newest first) and ``geometry`` (2: the
+    drone's horizontal position relative to the transmitter over tx_depth + rx_height).
+    ``EnvConfig.observation_layout`` names where each part sits.
+
+    **Sensing**: pointing, intensity, spot and history come in a measurement packet that reaches
+    the observation ``latency_steps`` late, with the sensor's noise, saturation and gating
+    (:mod:`waterair.envs.sensors`); time, action history and geometry are current. The default
+    (ideal) sensor reports the true values at once.
 
     **Reward** ``[B, 1]``: :class:`waterair.envs.rewards.Reward` of the intensity I = G / G_0, where G_0
     is the aligned calm-sea gain of the same geometry.
 
-    **Start**: new sea phases and jittered frequencies per link (and wind / offset drawn from their
-    ranges when domain randomisation is configured, or taken from ``wind_values`` /
-    ``offset_values``, link i using entry i mod their length), transmitter straight up, receiver
+    **Start**: new sea phases and jittered frequencies per link (and wind, offset, drone azimuth and
+    wind direction drawn from their ranges when domain randomisation is configured, or taken from
+    the ``*_values`` lists, link i using entry i mod their length), transmitter straight up, receiver
     straight down, t = 0. A ``_reset`` mask resets only the masked links. With ``replicas`` = k the
     batch is k copies of B / k links: link i and link i + B / k get the same sea (and wind and
     offset) whenever they reset together, as in a rollout: common random numbers, for comparing

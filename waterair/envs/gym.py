@@ -21,10 +21,11 @@ from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
 
 INFO_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid")
-OBSERVATION_BOUNDS = (-1.0, 2.0)
-"""Every observation entry lies here: unit pointing components, relative time in [0, 1], the
-intensity feature (0 for no light, ≈ 1 at calm-sea level; G_UB / G_0 stays near 1 because the model
-has no focusing), and the spot within ±1 inside the receiver's FOV."""
+OBSERVATION_BOUNDS = (-10.0, 10.0)
+"""Every observation entry lies here: unit pointing components and actions in [-1, 1], relative time
+in [0, 1], the intensity feature (0 for no light, ≈ 1 at calm-sea level; G_UB / G_0 stays near 1
+because the model has no focusing), the spot within ±1 inside the receiver's FOV (plus its noise),
+and the geometry, the offset ratio (≤ 10) in each component."""
 
 
 class WaterAirGymEnv(gymnasium.Env):
