@@ -37,6 +37,8 @@ CASES = [
     ("evaluate.py", "checkpoint={random}", "is not a torch file"),
     ("evaluate.py", "checkpoint={truncated}", "is truncated or damaged"),
     ("evaluate.py", "+foo=1", "foo is not a config key"),
+    ("train.py", "env.offset_range=5", "env.offset_range = 5 must be a list"),
+    ("train.py", "actor.hidden=5", "actor.hidden = 5 must be a list of layer widths"),
 ]
 
 

@@ -185,6 +185,11 @@ def test_missing_and_corrupt_checkpoints_give_one_line_naming_the_file(tmp_path)
         load_policy(truncated)
     assert str(info.value) == f"checkpoint {truncated} is truncated or damaged ({len(whole) // 2} bytes)"
 
+    model = tmp_path / "model.pt"
+    torch.save(torch.nn.Linear(2, 2), model)  # a whole module, not a state dictionary
+    with pytest.raises(CheckpointError, match="is a torch file holding objects, not only tensors"):
+        load_policy(model)
+
     newer = tmp_path / "newer.pt"
     torch.save({**torch.load(tmp_path / "whole.pt", weights_only=True), "format": "waterair-policy/9"}, newer)
     with pytest.raises(CheckpointError, match=r"format 'waterair-policy/9'; this waterair reads 'waterair-policy/1'"):

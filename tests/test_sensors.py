@@ -161,3 +161,12 @@ def test_per_link_azimuth_and_wind_direction_are_drawn_from_their_ranges():
     torch.testing.assert_close(torch.linalg.vector_norm(rx[:, :2], dim=-1), torch.full((64,), 2.0), rtol=1e-5, atol=0)
     heading = torch.rad2deg(torch.atan2(env.surface.ky, env.surface.kx))  # per harmonic: wind ± 90°
     assert heading.abs().max() <= 180.0 + 1e-3 and heading.std() > 30
+
+
+def test_in_delta_mode_late_telemetry_does_not_disturb_a_pointing_policy():
+    """Policies steer from the commanded tilt, not from the (late) pointing telemetry in the observation."""
+    traces = []
+    for latency in (0, 2):
+        env = WaterAirEnv(**SMALL, num_envs=8, action_mode="delta", latency_steps=latency, offset_ratio=0.5, wind=4.0)
+        traces.append(env.rollout(40, FlatSeaSnell(env), break_when_any_done=False)["next", "intensity"])
+    assert torch.equal(traces[0], traces[1])

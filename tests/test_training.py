@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 import torch
 from conftest import ROOT, compose_config
+from omegaconf import OmegaConf
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 import waterair.training.checkpoint as checkpoint_module
@@ -227,3 +228,12 @@ def test_a_short_run_trains_and_reloads_with_each_observation_preset(preset, tmp
     assert metrics["frames"] == 800 and metrics["updates"] > 0
     state = torch.load(tmp_path / "checkpoints" / "last.pt", weights_only=True)
     assert state["observation_size"] == {"intensity": 28, "quadrant": 13}[preset]
+
+
+def test_resume_compares_only_the_keys_a_group_option_sets(tmp_path):
+    (tmp_path / "config.yaml").write_text(OmegaConf.to_yaml(compose_cfg("seed=3"), resolve=True))
+    same = [f"resume={tmp_path}", "env/sea=moderate"]  # restating the run's own sea is no change
+    assert plan_resume(compose_cfg(*same), same).frames_done == 0
+    other = [f"resume={tmp_path}", "env/sea=rough"]
+    with pytest.raises(ValueError, match=r"^resume: env/sea=rough changes env.wind \(the run has 12.0\)"):
+        plan_resume(compose_cfg(*other), other)

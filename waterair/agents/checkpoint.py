@@ -9,6 +9,7 @@ written atomically and read with ``torch.load(weights_only=True)``.
 
 from __future__ import annotations
 
+import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -112,6 +113,11 @@ def load_state(path: Path) -> dict:
     except Exception:  # torch raises many types for damaged or foreign bytes; classify by the header
         with path.open("rb") as handle:
             zipped = handle.read(4) == ZIP_MAGIC
+        if zipped and zipfile.is_zipfile(path):  # whole, but holding objects that weights_only refuses
+            raise CheckpointError(
+                f"checkpoint {path} is a torch file holding objects, not only tensors (a saved model?); "
+                f"waterair reads state dictionaries with weights_only=True"
+            ) from None
         if zipped:
             raise CheckpointError(f"checkpoint {path} is truncated or damaged ({path.stat().st_size} bytes)") from None
         raise CheckpointError(

@@ -8,13 +8,13 @@ rollout per policy. The kernel is compiled by a small warm-up first, so neither 
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 from hydra import compose, initialize_config_dir
 
 from waterair.evaluation.runner import evaluate
+from waterair.training.config import CONF_DIR
 
-CONF = Path(__file__).resolve().parents[2] / "conf"
+CONF = CONF_DIR
 WARM_UP = [
     "scenarios.S1.realisations=2",
     "scenarios.S1.steps=5",

@@ -12,7 +12,6 @@ from __future__ import annotations
 import re
 import sys
 from collections.abc import Callable, Sequence
-from pathlib import Path
 
 from hydra import compose, initialize_config_dir
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
@@ -21,10 +20,13 @@ from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
-"""The Hydra config directory of the repository."""
-PASS_THROUGH = {"-h", "--help", "--hydra-help", "-i", "--info", "-c", "--cfg", "--version", "--shell-completion", "-sc"}
-"""Hydra flags that print something and run nothing: left to Hydra unchecked."""
+from waterair.training.config import CONF_DIR
+
+PASS_THROUGH = {
+    *("-h", "--help", "--hydra-help", "-i", "--info", "-c", "--cfg", "--version", "--shell-completion", "-sc"),
+    *("-cn", "--config-name", "-cp", "--config-path", "-cd", "--config-dir", "--experimental-rerun"),
+}
+"""Hydra flags that print something and run nothing, or that choose another config: left to Hydra."""
 MULTIRUN = {"-m", "--multirun"}
 MAX_JOBS = 256
 """A sweep with more jobs is checked on its first MAX_JOBS jobs (every value still appears)."""
@@ -43,8 +45,10 @@ def preflight(config_name: str, argv: Sequence[str], check: Callable[[DictConfig
             check(compose_checked(config_name, overrides), overrides)
     except (CommandLineError, ValueError) as error:
         sys.exit(f"error: {error}")
-    except OmegaConfBaseException as error:  # a key the program reads is missing or of the wrong type
+    except (OmegaConfBaseException, HydraException) as error:  # a key missing or of the wrong type
         sys.exit(f"error: {one_line(error)}")
+    except TypeError as error:  # a scalar where a list belongs, or the like
+        sys.exit(f"error: a config value has the wrong type ({error})")
 
 
 def jobs(argv: Sequence[str]) -> list[list[str]]:

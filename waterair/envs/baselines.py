@@ -20,7 +20,7 @@ from waterair.physics.paths import flat_sea_point
 class PointingPolicy(TensorDictModuleBase):
     """Base class: subclasses say where each end should point; this turns it into an action."""
 
-    in_keys = ["tx_position", "rx_position", "observation"]
+    in_keys = ["tx_position", "rx_position", "observation", "tilt"]
     out_keys = ["action"]
     name = "pointing"
     required_extras: tuple[str, ...] = ()
@@ -36,12 +36,9 @@ class PointingPolicy(TensorDictModuleBase):
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         tx_dir, rx_dir = self.directions(tensordict)
-        # The present tilts come from the observation's pointing vectors, so the policy also acts
-        # correctly on a slice of the batch.
-        observation = tensordict.get("observation")
-        tx_now, rx_now = (self.env.observation_part(observation, f"{end}_pointing") for end in ("tx", "rx"))
-        current = torch.cat((tx_now[:, :2], rx_now[:, :2]), dim=-1)
-        tensordict.set("action", self.env.action_for_pointing(tx_dir, rx_dir, current))
+        # The present (commanded) tilts come with each row, so the policy acts correctly on a slice
+        # of the batch, and in delta mode also when the sensors' pointing telemetry is late.
+        tensordict.set("action", self.env.action_for_pointing(tx_dir, rx_dir, tensordict.get("tilt")))
         return tensordict
 
 
@@ -84,7 +81,7 @@ class PreviousPathTracking(PointingPolicy):
     flat-sea path where the previous path was invalid.
     """
 
-    in_keys = ["tx_position", "rx_position", "observation", "departure", "arrival", "path_valid"]
+    in_keys = ["tx_position", "rx_position", "observation", "tilt", "departure", "arrival", "path_valid"]
     name = "tracking"
 
     def directions(self, tensordict):

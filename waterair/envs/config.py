@@ -106,6 +106,7 @@ class EnvConfig:
         check_choice("env.action_mode", self.action_mode, ACTION_MODES)
         check_range("env.max_tilt_deg", self.max_tilt_deg, 0.0, 90.0, low_open=True, high_open=True, unit="deg")
         check_range("env.max_slew_deg_s", self.max_slew_deg_s, 0.0, 1e5, low_open=True, unit="deg/s")
+        _check_list("env.observation_extras", self.observation_extras)
         object.__setattr__(self, "observation_extras", tuple(self.observation_extras))
         for extra in self.observation_extras:
             check_choice("env.observation_extras", extra, OBSERVATION_EXTRAS)
@@ -146,6 +147,7 @@ class EnvConfig:
         key, values = f"{name}_values", getattr(self, f"{name}_values")
         if values is None:
             return
+        _check_list(f"env.{key}", values)
         values = tuple(values)
         if not values:
             raise ValueError(f"env.{key} = [] must list at least one value (or be null)")
@@ -237,11 +239,17 @@ class EnvConfig:
 def _check_pair(
     name: str, pair: Sequence[float], low: float, high: float, unit: str, low_open: bool
 ) -> tuple[float, float]:
+    _check_list(name, pair)
     if len(pair) != 2:
         raise ValueError(f"{name} = {list(pair)!r} must be [low, high]")
     lo = check_range(f"{name}[0]", pair[0], low, high, low_open=low_open, unit=unit)
     hi = check_range(f"{name}[1]", pair[1], lo, high, unit=unit)
     return lo, hi
+
+
+def _check_list(name: str, value) -> None:
+    if isinstance(value, str) or not isinstance(value, Sequence):
+        raise ValueError(f"{name} = {value!r} must be a list, e.g. [a, b]")
 
 
 def _plain(value):

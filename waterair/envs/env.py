@@ -72,7 +72,8 @@ class WaterAirEnv(EnvBase):
 
     Besides the observation each step writes ``gain`` G (1/m²), ``gain_upper_bound`` G_UB,
     ``intensity`` I, ``path_valid``, ``alpha_d``/``alpha_a`` (rad), ``departure``/``arrival`` unit
-    path directions and ``tx_position``/``rx_position`` (m), for evaluation and the baselines.
+    path directions, ``tx_position``/``rx_position`` (m) and ``tilt``, the present tilt vectors
+    (tx_vx, tx_vy, rx_vx, rx_vy) the gimbals were commanded to, for evaluation and the baselines.
     The simulator state lives on the device chosen at construction.
     """
 
@@ -226,6 +227,7 @@ class WaterAirEnv(EnvBase):
             arrival=vector(3),
             tx_position=vector(3),
             rx_position=vector(3),
+            tilt=vector(4),
         )
         self.action_spec_unbatched = Bounded(low=-1.0, high=1.0, shape=(4,), dtype=dtype)
         self.reward_spec_unbatched = Unbounded(shape=(1,), dtype=dtype)
@@ -399,6 +401,7 @@ class WaterAirEnv(EnvBase):
                 "observation": torch.cat([parts[name] for name in self.config.observation_layout], dim=-1),
                 "tx_position": self.tx_position.clone(),
                 "rx_position": self.rx_position.clone(),
+                "tilt": torch.cat((self.tx_tilt, self.rx_tilt), dim=-1),
             }
         )
         return out

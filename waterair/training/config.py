@@ -6,6 +6,8 @@ range. Each option of a group is checked for exactly the keys it carries.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from omegaconf import DictConfig, OmegaConf
 
 from waterair.agents.networks import ACTIVATIONS
@@ -14,6 +16,8 @@ from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.config import EnvConfig
 from waterair.envs.rewards import Reward
 
+CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+"""The repository's Hydra config directory (the package is installed in place)."""
 LOSSES = {"ddpg": "torchrl.objectives.DDPGLoss", "td3": "torchrl.objectives.TD3Loss"}
 """The loss class each ``agent.name`` instantiates (``agent.loss._target_``)."""
 NOISES = ("gaussian", "ou")
@@ -38,6 +42,8 @@ def validate(cfg: DictConfig) -> None:
         check_choice(f"{net}.name", cfg[net].name, NETWORKS)
         check_range(f"{net}.lr", cfg[net].lr, 0.0, 1.0, low_open=True)
         check_choice(f"{net}.activation", cfg[net].activation, ACTIVATIONS)
+        if not OmegaConf.is_list(cfg[net].hidden) and not isinstance(cfg[net].hidden, list | tuple):
+            raise ValueError(f"{net}.hidden = {cfg[net].hidden!r} must be a list of layer widths, e.g. [256, 256]")
         for width in cfg[net].hidden:
             check_int(f"{net}.hidden", width, 1, 1 << 16)
     check_choice("buffer.name", cfg.buffer.name, BUFFERS)

@@ -18,7 +18,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from waterair.agents.checkpoint import load_state
 from waterair.training.checkpoint import CHECKPOINT
-from waterair.training.config import validate
+from waterair.training.config import CONF_DIR, validate
 
 FREE_KEYS = ("resume", "total_frames", "logger.progress_bar")
 """Keys a resume command may set (the bar only changes what the console shows); ``hydra.*`` is free too."""
@@ -48,15 +48,15 @@ def plan_resume(cfg: DictConfig, overrides: list[str]) -> ResumePlan:
     checkpoint = run_dir / CHECKPOINT
     frames_done = int(load_state(checkpoint)["frames"]) if checkpoint.exists() else 0
     for override in OverridesParser.create().parse_overrides(overrides):
-        key = override.key_or_group.split("/")[0]  # env/sea=rough changes the env group
-        if key in FREE_KEYS or key.split(".")[0] == "hydra":
+        if override.key_or_group.split(".")[0].split("/")[0] in ("hydra", *FREE_KEYS):
             continue
-        new, old = _plain(OmegaConf.select(cfg, key)), _plain(OmegaConf.select(saved, key))
-        if new != old:
-            raise ValueError(
-                f"resume: {override.input_line} changes {key} (the run has {old!r}); a resumed run keeps its "
-                f"config, only total_frames may grow"
-            )
+        for key in _keys_set_by(override):
+            new, old = _plain(OmegaConf.select(cfg, key)), _plain(OmegaConf.select(saved, key))
+            if new != old:
+                raise ValueError(
+                    f"resume: {override.input_line} changes {key} (the run has {old!r}); a resumed run keeps its "
+                    f"config, only total_frames may grow"
+                )
     given = {o.split("=")[0].lstrip("+") for o in overrides}
     free = {"resume": str(run_dir)}
     if "total_frames" in given:
@@ -74,6 +74,15 @@ def plan_resume(cfg: DictConfig, overrides: list[str]) -> ResumePlan:
     except OmegaConfBaseException as error:  # a key this version reads is missing: an older run
         raise ValueError(f"resume: {run_dir / 'config.yaml'} is not a config this version can run ({error})") from None
     return ResumePlan(run_dir=run_dir, config=config, frames_done=frames_done)
+
+
+def _keys_set_by(override) -> list[str]:
+    """The config keys an override sets: itself, or every key its group option file sets."""
+    if "/" not in override.key_or_group:
+        return [override.key_or_group]
+    option = OmegaConf.load(CONF_DIR / override.key_or_group / f"{override.value()}.yaml")
+    package = override.key_or_group.split("/")[0]  # the env/* groups are overlays on env
+    return [f"{package}.{key}" for key in option]
 
 
 def _plain(value):
