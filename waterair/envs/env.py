@@ -382,15 +382,20 @@ class WaterAirEnv(EnvBase):
             batch_size=[rows.numel()],
         )
 
+    def _current_part(self, name: str, packet: TensorDict) -> torch.Tensor:
+        """Observation part ``name`` now: from the delivered packet, or the controller's own knowledge."""
+        if name in PACKET_PARTS:
+            return packet[name]
+        if name == "time":
+            return (self.time / self.config.episode_seconds).unsqueeze(-1)
+        if name == "action_history":
+            return self.action_history.flatten(1)
+        return (self.rx_position - self.tx_position)[:, :2] / self._vertical_distance  # geometry
+
     def _output(self) -> TensorDict:
         m = self.measurement
         packet = self.packets.delivered()
-        parts = {
-            **{name: packet[name] for name in PACKET_PARTS},
-            "time": (self.time / self.config.episode_seconds).unsqueeze(-1),
-            "action_history": self.action_history.flatten(1),
-            "geometry": (self.rx_position - self.tx_position)[:, :2] / self._vertical_distance,
-        }
+        parts = [self._current_part(name, packet) for name in self.config.observation_layout]
         out = TensorDict(
             {key: m[key].clone() for key in MEASUREMENT_KEYS},
             batch_size=self.batch_size,
@@ -398,7 +403,7 @@ class WaterAirEnv(EnvBase):
         )
         out.update(
             {
-                "observation": torch.cat([parts[name] for name in self.config.observation_layout], dim=-1),
+                "observation": torch.cat(parts, dim=-1),
                 "tx_position": self.tx_position.clone(),
                 "rx_position": self.rx_position.clone(),
                 "tilt": torch.cat((self.tx_tilt, self.rx_tilt), dim=-1),
