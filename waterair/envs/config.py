@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.physics.channel import LinkGeometry, Transceiver
-from waterair.physics.paths import METHODS
 from waterair.physics.sea import SeaState
 
 ACTION_MODES = ("absolute", "delta")
@@ -30,6 +29,8 @@ PER_LINK = {
 OBSERVATION_EXTRAS = ("spot", "spot_valid", "history", "action_history", "geometry")
 """Opt-in observation parts, in the order they follow the paper's 8 (docs/environment.md)."""
 DTYPES = ("float32", "float64")
+ENV_SOLVERS = ("newton", "centroid")
+"""Path solvers of the step: fixed-iteration Newton in the step's graph, or the paper's centroid method."""
 
 
 @dataclass(frozen=True)
@@ -71,6 +72,7 @@ class EnvConfig:
     observation_extras: tuple[str, ...] = ()  # any of OBSERVATION_EXTRAS; presets: env/observation=
     history_length: int = 4  # readings kept by the "history" and "action_history" extras
     solver: str = "newton"  # newton | centroid
+    newton_iterations: int = 3  # masked Newton iterations of the compiled step; the rare rest finish adaptively
     # sensing (docs/environment.md, "Sensing"); all 0 / null: the ideal sensor (preset env/sensor=ideal)
     latency_steps: int = 0  # extra steps before a measurement packet reaches the controller
     intensity_noise: float = 0.0  # relative standard deviation of the measured intensity
@@ -123,7 +125,8 @@ class EnvConfig:
             raise ValueError(
                 f"env.replicas = {self.replicas} is not allowed; it must divide env.num_envs = {self.num_envs}"
             )
-        check_choice("env.solver", self.solver, METHODS)
+        check_choice("env.solver", self.solver, ENV_SOLVERS)
+        check_int("env.newton_iterations", self.newton_iterations, 1, 20)
         for name, (low, high, unit) in PER_LINK.items():
             range_key = f"{name}_range"
             if getattr(self, range_key) is not None:

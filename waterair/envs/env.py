@@ -5,33 +5,24 @@
 
 from __future__ import annotations
 
-import math
-
 import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from waterair.core.devices import resolve_device
+from waterair.envs import kernel
 from waterair.envs.config import EnvConfig
+from waterair.envs.kernel import MEASUREMENT_KEYS, SURFACE_KEYS, StepConstants
 from waterair.envs.rewards import Reward
-from waterair.envs.sensors import PACKET_PARTS, PacketDelay, Sensor, intensity_feature, spot_position
-from waterair.physics.channel import calm_sea_gains, channel_gain, gain_upper_bound, pointing
+from waterair.envs.sensors import Sensor, packet_sizes
+from waterair.envs.stepper import Stepper
+from waterair.physics.channel import calm_sea_gains
 from waterair.physics.paths import flat_sea_point, solve_path
 from waterair.physics.surface import WaveSurface
 
 SENSOR_SEED_MASK = 0x5E5E5E5E
 """The sensor-noise generator is seeded with ``seed XOR`` this, independent of the seas'."""
-MEASUREMENT_KEYS = (
-    "gain",
-    "gain_upper_bound",
-    "intensity",
-    "path_valid",
-    "alpha_d",
-    "alpha_a",
-    "departure",
-    "arrival",
-)
 
 
 class WaterAirEnv(EnvBase):
@@ -101,6 +92,11 @@ class WaterAirEnv(EnvBase):
             self.optics.half_fov,
             self._sensor_generator,
         )
+        self.constants = StepConstants.of(config, self.sensor, self.reward_fn)
+        self.stepper = Stepper(self.constants, config.solver, config.compile_kernel)
+        columns = kernel.observation_columns(config.observation_layout, config.history_length)
+        full = len(columns) == 13 + 5 * config.history_length
+        self._columns = None if full else torch.tensor(columns, device=self.device)
         self._allocate_state()
         self._reset_rows(torch.arange(config.num_envs, device=self.device))
 
@@ -114,7 +110,7 @@ class WaterAirEnv(EnvBase):
             rows = mask.reshape(self.batch_size[0], -1).any(-1).nonzero().squeeze(-1)
         if rows.numel():
             self._reset_rows(rows)
-        out = self._output()
+        out = self._output(kernel.observe(self.constants, self._full_state()))
         done = torch.zeros(*self.batch_size, 1, dtype=torch.bool, device=self.device)
         out.update({"done": done, "terminated": done.clone(), "truncated": done.clone()})
         return out
@@ -127,27 +123,15 @@ class WaterAirEnv(EnvBase):
                 f"action contains NaN (links {bad[:8]}{'…' if len(bad) > 8 else ''}); actions must be finite"
             )
         action = action.to(self.float_dtype).clamp(-1.0, 1.0)
-        self._apply_action(action)
-        self.action_history = torch.cat((action.unsqueeze(1), self.action_history[:, :-1]), dim=1)
-        self.time = self.time + self.config.dt
-        self.steps = self.steps + 1
-        path = solve_path(
-            self.surface,
-            self.tx_position,
-            self.rx_position,
-            self.time,
-            self.config.solver,
-            init=self.point[:, :2],
-            n_water=self.optics.n_water,
-            n_air=self.optics.n_air,
-            compiled=self.config.compile_kernel,
-        )
-        self._record(path, torch.arange(self.batch_size[0], device=self.device))
-        out = self._output()
-        truncated = (self.steps >= self.config.max_steps).unsqueeze(-1)
+        noise = self.sensor.draw(self.batch_size[0], self.float_dtype, self.device)
+        new, outputs = self.stepper(self.surface, self._full_state(), action, noise)
+        self.state.update(new)
+        self.measurement = {key: outputs[key] for key in MEASUREMENT_KEYS}
+        out = self._output(outputs["observation"])
+        truncated = outputs["truncated"]
         out.update(
             {
-                "reward": self.reward_fn(self.measurement["intensity"]).unsqueeze(-1),
+                "reward": outputs["reward"],
                 "done": truncated,
                 "terminated": torch.zeros_like(truncated),
                 "truncated": truncated.clone(),
@@ -194,19 +178,10 @@ class WaterAirEnv(EnvBase):
         if self.config.action_mode == "absolute":
             return (target / self.config.max_tilt).clamp(-1.0, 1.0)
         if current is None:
-            current = torch.cat((self.tx_tilt, self.rx_tilt), dim=-1)
-        return ((target - current.to(self.float_dtype)) / self._slew_step).clamp(-1.0, 1.0)
+            current = self.tilt
+        return ((target - current.to(self.float_dtype)) / self.constants.slew_step).clamp(-1.0, 1.0)
 
     # --- internals --------------------------------------------------------------------------
-
-    @property
-    def _vertical_distance(self) -> float:
-        """tx_depth + rx_height (m): the scale of the ``geometry`` observation."""
-        return self.config.tx_depth + self.config.rx_height
-
-    @property
-    def _slew_step(self) -> float:
-        return math.sin(math.radians(self.config.max_slew_deg_s * self.config.dt))
 
     def _make_specs(self) -> None:
         dtype = self.float_dtype
@@ -240,46 +215,76 @@ class WaterAirEnv(EnvBase):
         def zeros(*shape, kind=dtype):
             return torch.zeros(batch, *shape, dtype=kind, device=device)
 
+        history = self.config.history_length
         self.surface = WaveSurface.sample(self.sea, batch, generator=self._generator, device=device, dtype=dtype)
-        self.time, self.steps = zeros(), zeros(kind=torch.int64)
-        self.tx_tilt, self.rx_tilt = zeros(2), zeros(2)
-        self.tx_position, self.rx_position = zeros(3), zeros(3)
-        self.point, self.flat_point = zeros(3), zeros(3)
-        self.reference_gain = zeros()
-        self.history = zeros(self.config.history_length)  # previous measured intensity features
-        self.last_feature = zeros()  # the newest measured intensity feature
-        self.action_history = zeros(self.config.history_length, 4)
-        self.measurement = TensorDict(
-            {
-                "gain": zeros(),
-                "gain_upper_bound": zeros(),
-                "intensity": zeros(),
-                "path_valid": zeros(kind=torch.bool),
-                "alpha_d": zeros(),
-                "alpha_a": zeros(),
-                "departure": zeros(3),
-                "arrival": zeros(3),
-            },
-            batch_size=[batch],
-            device=device,
-        )
-        packet = TensorDict(
-            {
-                "tx_pointing": zeros(3),
-                "rx_pointing": zeros(3),
-                "intensity": zeros(1),
-                "spot": zeros(2),
-                "spot_valid": zeros(1),
-                "history": zeros(self.config.history_length),
-            },
-            batch_size=[batch],
-            device=device,
-        )
-        self.packets = PacketDelay(self.config.latency_steps, packet)
+        self.state: dict[str, torch.Tensor] = {
+            "time": zeros(),
+            "steps": zeros(kind=torch.int64),
+            "tx_tilt": zeros(2),
+            "rx_tilt": zeros(2),
+            "tx_position": zeros(3),
+            "rx_position": zeros(3),
+            "point": zeros(3),
+            "previous_point": zeros(3),
+            "flat_point": zeros(3),
+            "reference_gain": zeros(),
+            "history": zeros(history),  # previous measured intensity features
+            "last_feature": zeros(),  # the newest measured intensity feature
+            "action_history": zeros(history, 4),
+            # the packets in flight, newest first; the controller sees the last slot
+            "packets": zeros(self.config.latency_steps + 1, sum(packet_sizes(history))),
+        }
+        self.measurement = {
+            "gain": zeros(),
+            "gain_upper_bound": zeros(),
+            "intensity": zeros(),
+            "path_valid": zeros(kind=torch.bool),
+            "alpha_d": zeros(),
+            "alpha_a": zeros(),
+            "departure": zeros(3),
+            "arrival": zeros(3),
+        }
+
+    def _full_state(self) -> dict[str, torch.Tensor]:
+        """The step's input: the seas' components and :attr:`state`."""
+        return {**{key: getattr(self.surface, key) for key in SURFACE_KEYS}, **self.state}
+
+    @property
+    def time(self) -> torch.Tensor:
+        """Each link's time since its reset (s), ``[B]``."""
+        return self.state["time"]
+
+    @property
+    def steps(self) -> torch.Tensor:
+        """Each link's steps since its reset, ``[B]`` int64."""
+        return self.state["steps"]
+
+    @property
+    def point(self) -> torch.Tensor:
+        """Each link's present path point P (m), ``[B, 3]`` (the calm-sea point where the path is invalid)."""
+        return self.state["point"]
+
+    @property
+    def reference_gain(self) -> torch.Tensor:
+        """G_0 of each link's geometry (1/m²), ``[B]``: the intensity reference."""
+        return self.state["reference_gain"]
+
+    @property
+    def tx_position(self) -> torch.Tensor:
+        return self.state["tx_position"]
+
+    @property
+    def rx_position(self) -> torch.Tensor:
+        return self.state["rx_position"]
+
+    @property
+    def tilt(self) -> torch.Tensor:
+        """The present commanded tilt vectors (tx_vx, tx_vy, rx_vx, rx_vy), ``[B, 4]``."""
+        return torch.cat((self.state["tx_tilt"], self.state["rx_tilt"]), dim=-1)
 
     def _reset_rows(self, rows: torch.Tensor) -> None:
         """New seas, geometry, pointing and a cold path solve for ``rows`` (``[n]`` indices)."""
-        config, dtype = self.config, self.float_dtype
+        config, dtype, state = self.config, self.float_dtype, self.state
         # Replicas share their random draws: draw once per distinct link, then copy to each replica.
         distinct, copy = torch.unique(rows % (config.num_envs // config.replicas), return_inverse=True)
         wind = self._per_link(config.wind_range, config.wind_values, None, distinct)
@@ -298,28 +303,46 @@ class WaterAirEnv(EnvBase):
         azimuth = self._per_link(config.offset_azimuth_range, config.offset_azimuth_values, None, distinct)
         azimuth = None if azimuth is None else azimuth[copy.cpu()]
         tx, rx = (v.to(self.device, dtype) for v in self.link.positions_for(offset, azimuth))
-        self.tx_position[rows], self.rx_position[rows] = tx, rx
-        self.reference_gain[rows] = calm_sea_gains(tx.double(), rx.double(), self.optics).to(dtype)
+        reference = calm_sea_gains(tx.double(), rx.double(), self.optics).to(dtype)
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)
-        self.flat_point[rows] = flat
-        self.time[rows] = 0.0
-        self.steps[rows] = 0
-        self.tx_tilt[rows] = 0.0
-        self.rx_tilt[rows] = 0.0
+        zero = torch.zeros(rows.numel(), device=self.device, dtype=dtype)
         path = solve_path(
             self.surface[rows],
             tx,
             rx,
-            self.time[rows],
+            zero,
             config.solver,
             init=flat[:, :2],
             n_water=self.optics.n_water,
             n_air=self.optics.n_air,
             compiled=self.config.compile_kernel,
         )
-        self.history[rows] = 0.0
-        self.action_history[rows] = 0.0
-        self._record(path, rows, reset=True)
+        tilts = {"tx_tilt": torch.zeros_like(zero).unsqueeze(-1).expand(-1, 2), "rx_tilt": None}
+        tilts["rx_tilt"] = tilts["tx_tilt"]
+        noise = self.sensor.draw(rows.numel(), dtype, self.device)
+        measurement, packet, stored, feature = kernel.record(self.constants, tilts, path, reference, flat, noise)
+        no_history = torch.zeros(rows.numel(), config.history_length, device=self.device, dtype=dtype)
+        packed = kernel.pack(packet, no_history)  # a reset has no older packet: it fills every slot
+        updates = {
+            "time": zero,
+            "steps": 0,
+            "tx_tilt": 0.0,
+            "rx_tilt": 0.0,
+            "tx_position": tx,
+            "rx_position": rx,
+            "point": stored,
+            "previous_point": stored,
+            "flat_point": flat,
+            "reference_gain": reference,
+            "history": 0.0,
+            "last_feature": feature,
+            "action_history": 0.0,
+            "packets": packed.unsqueeze(1),
+        }
+        for key, value in updates.items():
+            state[key][rows] = value
+        for key, value in measurement.items():
+            self.measurement[key][rows] = value
 
     def _per_link(self, bounds, values, default, rows: torch.Tensor) -> torch.Tensor | None:
         """float64 ``[n]`` values for ``rows``: drawn from ``bounds``, cycled from ``values``, or ``default``."""
@@ -331,82 +354,16 @@ class WaterAirEnv(EnvBase):
             return torch.tensor(values, dtype=torch.float64)[rows.cpu() % len(values)]
         return None if default is None else torch.full((count,), default, dtype=torch.float64)
 
-    def _apply_action(self, action: torch.Tensor) -> None:
-        if self.config.action_mode == "absolute":
-            tx, rx = action[:, :2] * self.config.max_tilt, action[:, 2:] * self.config.max_tilt
-        else:
-            tx, rx = self.tx_tilt + action[:, :2] * self._slew_step, self.rx_tilt + action[:, 2:] * self._slew_step
-        self.tx_tilt, self.rx_tilt = self._limit_tilt(tx), self._limit_tilt(rx)
-
-    def _limit_tilt(self, tilt: torch.Tensor) -> torch.Tensor:
-        norm = torch.linalg.vector_norm(tilt, dim=-1, keepdim=True)
-        return tilt * (self.config.max_tilt / norm.clamp(min=self.config.max_tilt))
-
-    def _record(self, path, rows: torch.Tensor, reset: bool = False) -> None:
-        """Store the path's gains and the sensor packet for ``rows``, and the warm start of the next solve."""
-        tx_dir, rx_dir = pointing(self.tx_tilt[rows], up=True), pointing(self.rx_tilt[rows], up=False)
-        gain = channel_gain(path, tx_dir, rx_dir, self.optics)
-        intensity = gain.gain / self.reference_gain[rows]
-        # An invalid path restarts its next solve from the calm-sea point rather than a lost one.
-        self.point[rows] = torch.where(path.valid.unsqueeze(-1), path.point, self.flat_point[rows])
-        if not reset:
-            self.history[rows] = torch.cat((self.last_feature[rows].unsqueeze(-1), self.history[rows, :-1]), dim=-1)
-        measured = self.sensor.intensity(intensity)
-        spot, spot_valid = self.sensor.spot(
-            spot_position(path.arrival, rx_dir, self.optics.half_fov), gain.arrival > 0, measured
-        )
-        self.last_feature[rows] = intensity_feature(measured)
-        packet = TensorDict(
-            {
-                "tx_pointing": tx_dir,
-                "rx_pointing": rx_dir,
-                "intensity": self.last_feature[rows].unsqueeze(-1),
-                "spot": spot,
-                "spot_valid": spot_valid.unsqueeze(-1),
-                "history": self.history[rows],
-            },
-            batch_size=[rows.numel()],
-        )
-        self.packets.push(rows, packet, fill=reset)
-        self.measurement[rows] = TensorDict(
-            {
-                "gain": gain.gain,
-                "gain_upper_bound": gain_upper_bound(path, self.optics),
-                "intensity": intensity,
-                "path_valid": path.valid,
-                "alpha_d": gain.alpha_d,
-                "alpha_a": gain.alpha_a,
-                "departure": path.departure,
-                "arrival": path.arrival,
-            },
-            batch_size=[rows.numel()],
-        )
-
-    def _current_part(self, name: str, packet: TensorDict) -> torch.Tensor:
-        """Observation part ``name`` now: from the delivered packet, or the controller's own knowledge."""
-        if name in PACKET_PARTS:
-            return packet[name]
-        if name == "time":
-            return (self.time / self.config.episode_seconds).unsqueeze(-1)
-        if name == "action_history":
-            return self.action_history.flatten(1)
-        return (self.rx_position - self.tx_position)[:, :2] / self._vertical_distance  # geometry
-
-    def _output(self) -> TensorDict:
-        m = self.measurement
-        packet = self.packets.delivered()
-        parts = [self._current_part(name, packet) for name in self.config.observation_layout]
-        out = TensorDict(
-            {key: m[key].clone() for key in MEASUREMENT_KEYS},
-            batch_size=self.batch_size,
-            device=self.device,
-        )
+    def _output(self, observation: torch.Tensor) -> TensorDict:
+        """The step's TensorDict, with the observation's parts of this layout (of all parts)."""
+        if self._columns is not None:
+            observation = observation.index_select(-1, self._columns)
+        state = self.state
+        out = {key: value.clone() for key, value in self.measurement.items()}
         out.update(
-            {
-                "observation": torch.cat(parts, dim=-1),
-                "tx_position": self.tx_position.clone(),
-                "rx_position": self.rx_position.clone(),
-                "tilt": torch.cat((self.tx_tilt, self.rx_tilt), dim=-1),
-            }
+            observation=observation,
+            tx_position=state["tx_position"].clone(),
+            rx_position=state["rx_position"].clone(),
+            tilt=self.tilt,
         )
-        return out
+        return TensorDict(out, batch_size=self.batch_size, device=self.device)

@@ -16,7 +16,6 @@ from __future__ import annotations
 import math
 
 import torch
-from tensordict import TensorDict
 
 PACKET_PARTS = ("tx_pointing", "rx_pointing", "intensity", "spot", "spot_valid", "history")
 """Observation parts that travel in the measurement packet, and so arrive ``latency_steps`` late."""
@@ -62,8 +61,16 @@ def receiver_frame(boresight: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]
     return e1, torch.linalg.cross(boresight, e1, dim=-1)
 
 
+def packet_sizes(history_length: int) -> tuple[int, ...]:
+    """The widths of the parts of :data:`PACKET_PARTS` in one packet."""
+    return (3, 3, 1, 2, 1, history_length)
+
+
 class Sensor:
     """The sensor settings of one environment and the readings they turn true values into.
+
+    Readings are pure functions of the true values and a noise draw (:meth:`draw`, made outside
+    the compiled step from the sensor's own generator), so the step stays one graph.
 
     Args:
         latency_steps: steps a packet takes to reach the controller (0: the present model).
@@ -94,11 +101,29 @@ class Sensor:
         self.spot_threshold = spot_threshold
         self.generator = generator
 
-    def intensity(self, true: torch.Tensor) -> torch.Tensor:
+    @property
+    def noisy_intensity(self) -> bool:
+        return bool(self.intensity_noise or self.intensity_noise_floor)
+
+    def draw(self, count: int, dtype: torch.dtype, device: torch.device) -> torch.Tensor | None:
+        """Standard normal draws ``[count, 4]`` for one reading of ``count`` links, or None if noiseless.
+
+        Columns 0-1 feed the intensity noise, 2-3 the spot noise; a source that is off draws nothing.
+        """
+        if not (self.noisy_intensity or self.spot_noise):
+            return None
+        columns = []
+        for on in (self.noisy_intensity, bool(self.spot_noise)):
+            if on:
+                columns.append(torch.randn(count, 2, generator=self.generator, dtype=torch.float64))
+            else:
+                columns.append(torch.zeros(count, 2, dtype=torch.float64))
+        return torch.cat(columns, dim=-1).to(device=device, dtype=dtype)
+
+    def intensity(self, true: torch.Tensor, noise: torch.Tensor | None) -> torch.Tensor:
         """Measured intensity ``[n]``: I (1 + σ_rel n1) + σ_floor n2, clipped to [0, saturation]."""
         measured = true
-        if self.intensity_noise or self.intensity_noise_floor:
-            noise = self._normal(true, 2)
+        if self.noisy_intensity and noise is not None:
             measured = (
                 true * (1.0 + self.intensity_noise * noise[:, 0]) + self.intensity_noise_floor * noise[:, 1]
             ).clamp(min=0.0)
@@ -106,35 +131,11 @@ class Sensor:
             measured = measured.clamp(max=self.intensity_saturation)
         return measured
 
-    def spot(self, true: torch.Tensor, lit: torch.Tensor, measured_intensity: torch.Tensor):
+    def spot(self, true: torch.Tensor, lit: torch.Tensor, measured_intensity: torch.Tensor, noise):
         """Spot reading ``[n, 2]`` and its validity ``[n]`` (float 0/1): noisy where light is seen, else 0."""
         valid = lit & (measured_intensity >= self.spot_threshold)
         reading = true
-        if self.spot_noise:
-            reading = true + self.spot_noise * self._normal(true, 2)
+        if self.spot_noise and noise is not None:
+            reading = true + self.spot_noise * noise[:, 2:]
         reading = torch.where(valid.unsqueeze(-1), reading, torch.zeros_like(reading))
         return reading, valid.to(true.dtype)
-
-    def _normal(self, like: torch.Tensor, columns: int) -> torch.Tensor:
-        draws = torch.randn(like.shape[0], columns, generator=self.generator, dtype=torch.float64)
-        return draws.to(device=like.device, dtype=like.dtype)
-
-
-class PacketDelay:
-    """The last ``latency_steps + 1`` packets of every link; the oldest is what the controller sees."""
-
-    def __init__(self, latency_steps: int, template: TensorDict):
-        self.slots = latency_steps + 1
-        batch = template.batch_size[0]
-        self.packets = template.unsqueeze(1).expand(batch, self.slots).clone()
-
-    def push(self, rows: torch.Tensor, packet: TensorDict, fill: bool = False) -> None:
-        """Add ``packet`` (``[n]``) for ``rows``; ``fill`` replaces every slot (a reset: no older packet)."""
-        if fill or self.slots == 1:
-            self.packets[rows] = packet.unsqueeze(1).expand(packet.batch_size[0], self.slots)
-            return
-        self.packets[rows] = torch.cat((packet.unsqueeze(1), self.packets[rows][:, :-1]), dim=1)
-
-    def delivered(self) -> TensorDict:
-        """The packet each link's controller sees now, ``[B]``."""
-        return self.packets[:, -1]

@@ -1,7 +1,8 @@
 """The refracted optical path T → P → R through a wave surface (docs/model.md §3, paper Sec. III).
 
-Two solvers find the same path: ``newton`` (default; :mod:`.newton`) and the paper's ``centroid``
-screen method (:mod:`.centroid`). :func:`solve_path` picks one.
+Three solvers find the same path: ``newton`` (default; :mod:`.newton`), ``newton_fixed``, the same
+iteration with a fixed number of masked steps for one compiled graph (:mod:`.fixed`), and the
+paper's ``centroid`` screen method (:mod:`.centroid`). :func:`solve_path` picks one.
 """
 
 from __future__ import annotations
@@ -13,12 +14,13 @@ import torch
 from waterair.core.validation import check_choice
 from waterair.physics.optics import N_AIR, N_WATER
 from waterair.physics.paths.centroid import CentroidOptions, solve_centroid
+from waterair.physics.paths.fixed import FixedNewtonOptions, solve_newton_fixed
 from waterair.physics.paths.newton import NewtonOptions, solve_newton
 from waterair.physics.paths.solution import PathSolution, finish_path, flat_sea_point
 from waterair.physics.surface import WaveSurface
 
-METHODS = ("newton", "centroid")
-OptionsT = TypeVar("OptionsT", NewtonOptions, CentroidOptions)
+METHODS = ("newton", "newton_fixed", "centroid")
+OptionsT = TypeVar("OptionsT", NewtonOptions, FixedNewtonOptions, CentroidOptions)
 
 
 def solve_path(
@@ -31,7 +33,7 @@ def solve_path(
     *,
     n_water: float = N_WATER,
     n_air: float = N_AIR,
-    options: NewtonOptions | CentroidOptions | None = None,
+    options: NewtonOptions | FixedNewtonOptions | CentroidOptions | None = None,
     compiled: bool = False,
 ) -> PathSolution:
     """Find the primary refracted path from ``tx`` (under water) to ``rx`` (in air) at time ``t``.
@@ -40,11 +42,12 @@ def solve_path(
         surface: B sea realisations.
         tx, rx: transmitter and receiver positions (m), ``[B, 3]`` or ``[3]``.
         t: time (s), float or ``[B]``.
-        method: ``"newton"`` or ``"centroid"``.
+        method: ``"newton"``, ``"newton_fixed"`` or ``"centroid"``.
         init: start point (x, y) on the surface, ``[B, 2]`` (m); None starts from the flat-sea
             solution. Pass the previous step's ``point[:, :2]`` to warm-start.
         n_water, n_air: refractive indices.
-        options: :class:`NewtonOptions` or :class:`CentroidOptions` matching ``method``.
+        options: :class:`NewtonOptions`, :class:`FixedNewtonOptions` or :class:`CentroidOptions`
+            matching ``method``.
         compiled: evaluate the surface through ``torch.compile`` (a one-off compile per process,
             then about the cost of one sin+cos pass per evaluation on CPU); the result matches
             the eager evaluation to rounding. The choice holds for this call only.
@@ -58,6 +61,9 @@ def solve_path(
         init = flat_sea_point(tx, rx, n_water, n_air)[:, :2]
     if method == "newton":
         return solve_newton(surface, tx, rx, t, init, n_water, n_air, _options(options, NewtonOptions), compiled)
+    if method == "newton_fixed":
+        fixed = _options(options, FixedNewtonOptions)
+        return solve_newton_fixed(surface, tx, rx, t, init, n_water, n_air, fixed, compiled)
     return solve_centroid(surface, tx, rx, t, init, n_water, n_air, _options(options, CentroidOptions), compiled)
 
 
@@ -73,6 +79,7 @@ def _options(options, kind: type[OptionsT]) -> OptionsT:
 __all__ = [
     "METHODS",
     "CentroidOptions",
+    "FixedNewtonOptions",
     "NewtonOptions",
     "PathSolution",
     "finish_path",

@@ -115,18 +115,21 @@ def _compiled_fermat():
     return torch.compile(fermat_terms, dynamic=True)
 
 
-def _newton_step(ev: _Fermat, tx, rx, n_w, n_a, max_step: float) -> torch.Tensor:
-    """Newton direction on a Hessian shifted to be positive definite, capped at ``max_step`` (m)."""
-    hxx, hxy, hyy = ev.hess.unbind(-1)
-    r1 = torch.linalg.vector_norm(ev.point - tx, dim=-1)
-    r2 = torch.linalg.vector_norm(rx - ev.point, dim=-1)
+def newton_direction(hess, grad, point, tx, rx, n_w, n_a, max_step: float) -> torch.Tensor:
+    """Newton direction on a Hessian shifted to be positive definite, capped at ``max_step`` (m).
+
+    ``hess`` (L_xx, L_xy, L_yy) ``[m, 3]``, ``grad`` ``[m, 2]``, ``point`` P ``[m, 3]``; a pure tensor function.
+    """
+    hxx, hxy, hyy = hess.unbind(-1)
+    r1 = torch.linalg.vector_norm(point - tx, dim=-1)
+    r2 = torch.linalg.vector_norm(rx - point, dim=-1)
     floor = 1e-2 * (n_w / r1 + n_a / r2)  # a tenth-order fraction of the flat-sea curvature
     half_trace = 0.5 * (hxx + hyy)
     lam_min = half_trace - torch.sqrt((0.5 * (hxx - hyy)) ** 2 + hxy**2)
     shift = (floor - lam_min).clamp(min=0.0)
     a, c = hxx + shift, hyy + shift
     det = a * c - hxy**2
-    gx, gy = ev.grad.unbind(-1)
+    gx, gy = grad.unbind(-1)
     step = -torch.stack((c * gx - hxy * gy, a * gy - hxy * gx), dim=-1) / det.unsqueeze(-1)
     length = torch.linalg.vector_norm(step, dim=-1, keepdim=True)
     return step * (max_step / length.clamp(min=max_step))
@@ -134,6 +137,12 @@ def _newton_step(ev: _Fermat, tx, rx, n_w, n_a, max_step: float) -> torch.Tensor
 
 def solve_newton(surface, tx, rx, t, init, n_w, n_a, opts: NewtonOptions, compiled: bool = False) -> PathSolution:
     """The primary path from the start points ``init`` ``[B, 2]`` (m); see :func:`waterair.physics.paths.solve_path`."""
+    point, slope, done, iterations = iterate_newton(surface, tx, rx, t, init, n_w, n_a, opts, compiled)
+    return finish_path(point, slope, tx, rx, done, iterations, n_w, n_a)
+
+
+def iterate_newton(surface, tx, rx, t, init, n_w, n_a, opts: NewtonOptions, compiled: bool = False):
+    """Adaptive Newton iterations from ``init``: (P ``[B, 3]``, slopes ``[B, 2]``, converged, iterations)."""
     batch, dtype = tx.shape[0], tx.dtype
     tol = opts.tol if opts.tol is not None else (1e-11 if dtype == torch.float64 else 2e-5)
     eps = torch.finfo(dtype).eps
@@ -161,7 +170,8 @@ def solve_newton(surface, tx, rx, t, init, n_w, n_a, opts: NewtonOptions, compil
             ws_t = t_all[ws_rows] if t_all is not None else t
             todo = torch.ones(count, dtype=torch.bool, device=tx.device)
 
-        step = _newton_step(ws_ev, ws_tx, ws_rx, n_w, n_a, opts.max_step) * todo.unsqueeze(-1)
+        step = newton_direction(ws_ev.hess, ws_ev.grad, ws_ev.point, ws_tx, ws_rx, n_w, n_a, opts.max_step)
+        step = step * todo.unsqueeze(-1)
         slope = (ws_ev.grad * step).sum(-1)
         fraction = torch.ones_like(slope)
         trial = _fermat(ws_surface, ws_xy + step, ws_t, ws_tx, ws_rx, n_w, n_a, compiled)
@@ -195,4 +205,4 @@ def solve_newton(surface, tx, rx, t, init, n_w, n_a, opts: NewtonOptions, compil
         done[ws_rows] = ws_done
         ev.assign(ws_rows, ws_ev)
 
-    return finish_path(ev.point, ev.slope, tx, rx, done, iterations, n_w, n_a)
+    return ev.point, ev.slope, done, iterations

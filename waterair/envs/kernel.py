@@ -1,0 +1,260 @@
+"""The environment step as pure tensor functions, so that ``torch.compile`` makes it one graph.
+
+:func:`step` turns the state of B links and their actions into the next state and everything the
+step reports: the gimbal update, the path solve (a fixed number of masked Newton iterations from a
+prediction of the path point, :mod:`waterair.physics.paths.fixed`), the channel gain, the sensor
+readings and their delay, the observation and the reward. It has no Python branches on data and no
+host synchronisation. :class:`waterair.envs.env.WaterAirEnv` calls it compiled or eagerly (the same
+function, so both give the same numbers to float rounding), then hands the rare links whose path
+has not converged to the adaptive solver and redoes :func:`conclude` for them.
+
+The state is a plain ``dict`` of tensors (:data:`STATE_KEYS`); nothing here keeps state.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+from waterair.envs.config import EnvConfig
+from waterair.envs.rewards import Reward
+from waterair.envs.sensors import PACKET_PARTS, Sensor, intensity_feature, spot_position
+from waterair.physics.channel import Transceiver, channel_gain, gain_upper_bound, pointing
+from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path
+from waterair.physics.paths.fixed import fixed_newton_terms
+
+SURFACE_KEYS = ("omega", "phase", "kx", "ky", "amplitude")
+STATE_KEYS = (
+    *SURFACE_KEYS,
+    "time",
+    "steps",
+    "tx_tilt",
+    "rx_tilt",
+    "tx_position",
+    "rx_position",
+    "point",
+    "previous_point",
+    "flat_point",
+    "reference_gain",
+    "history",
+    "last_feature",
+    "action_history",
+    "packets",
+)
+"""What the step reads: the seas' components, the clock, the gimbals, the geometry, the last two
+path points (the prediction), the sensor history and the packets in flight ``[B, slots, width]``."""
+MEASUREMENT_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid", "alpha_d", "alpha_a", "departure", "arrival")
+"""The true values each step reports beside the observation."""
+
+
+@dataclass(frozen=True)
+class StepConstants:
+    """The numbers of one environment configuration that the step uses (all plain Python values)."""
+
+    optics: Transceiver
+    sensor: Sensor
+    reward: Reward
+    solver: FixedNewtonOptions
+    tolerance: float
+    absolute: bool
+    max_tilt: float
+    slew_step: float
+    dt: float
+    episode_seconds: float
+    max_steps: int
+    vertical_distance: float
+
+    @classmethod
+    def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward) -> StepConstants:
+        solver = FixedNewtonOptions(iterations=config.newton_iterations)
+        return cls(
+            optics=config.transceiver(),
+            sensor=sensor,
+            reward=reward,
+            solver=solver,
+            tolerance=solver.tolerance(getattr(torch, config.dtype)),
+            absolute=config.action_mode == "absolute",
+            max_tilt=config.max_tilt,
+            slew_step=math.sin(math.radians(config.max_slew_deg_s * config.dt)),
+            dt=config.dt,
+            episode_seconds=config.episode_seconds,
+            max_steps=config.max_steps,
+            vertical_distance=config.tx_depth + config.rx_height,
+        )
+
+
+def advance(c: StepConstants, state: dict, action: torch.Tensor) -> dict:
+    """Gimbals, action history and clock after ``action`` ``[B, 4]`` (already clipped to [-1, 1])."""
+    if c.absolute:
+        tx, rx = action[:, :2] * c.max_tilt, action[:, 2:] * c.max_tilt
+    else:
+        tx, rx = state["tx_tilt"] + action[:, :2] * c.slew_step, state["rx_tilt"] + action[:, 2:] * c.slew_step
+    return {
+        "tx_tilt": limit_tilt(tx, c.max_tilt),
+        "rx_tilt": limit_tilt(rx, c.max_tilt),
+        "action_history": torch.cat((action.unsqueeze(1), state["action_history"][:, :-1]), dim=1),
+        "time": state["time"] + c.dt,
+        "steps": state["steps"] + 1,
+    }
+
+
+def limit_tilt(tilt: torch.Tensor, max_tilt: float) -> torch.Tensor:
+    """Scale tilt vectors ``[n, 2]`` down to |v| ≤ sin(max_tilt)."""
+    norm = torch.linalg.vector_norm(tilt, dim=-1, keepdim=True)
+    return tilt * (max_tilt / norm.clamp(min=max_tilt))
+
+
+def predicted_point(state: dict) -> torch.Tensor:
+    """The next path point's (x, y) ``[B, 2]``, extrapolated from the last two (it moves smoothly)."""
+    return 2.0 * state["point"][:, :2] - state["previous_point"][:, :2]
+
+
+def solve(c: StepConstants, state: dict, time: torch.Tensor):
+    """The fixed-iteration Newton solve from the predicted point: (P, slopes, final (x, y), converged, iterations)."""
+    return fixed_newton_terms(
+        *(state[key] for key in SURFACE_KEYS),
+        predicted_point(state),
+        time,
+        state["tx_position"],
+        state["rx_position"],
+        c.optics.n_water,
+        c.optics.n_air,
+        c.solver.iterations,
+        c.tolerance,
+        c.solver.armijo,
+        c.solver.max_step,
+    )
+
+
+def record(c: StepConstants, tilts: dict, path: PathSolution, reference_gain, flat_point, noise):
+    """What a solved path gives: the true measurement, the sensor packet and the next warm start.
+
+    Returns (measurement dict, packet ``[n, width]``, stored point ``[n, 3]``, intensity feature ``[n]``).
+    An invalid path stores the calm-sea point, so that the next solve does not start from a lost one.
+    """
+    tx_dir, rx_dir = pointing(tilts["tx_tilt"], up=True), pointing(tilts["rx_tilt"], up=False)
+    gain = channel_gain(path, tx_dir, rx_dir, c.optics)
+    intensity = gain.gain / reference_gain
+    measured = c.sensor.intensity(intensity, noise)
+    spot, spot_valid = c.sensor.spot(
+        spot_position(path.arrival, rx_dir, c.optics.half_fov), gain.arrival > 0, measured, noise
+    )
+    feature = intensity_feature(measured)
+    packet = {
+        "tx_pointing": tx_dir,
+        "rx_pointing": rx_dir,
+        "intensity": feature.unsqueeze(-1),
+        "spot": spot,
+        "spot_valid": spot_valid.unsqueeze(-1),
+    }
+    measurement = {
+        "gain": gain.gain,
+        "gain_upper_bound": gain_upper_bound(path, c.optics),
+        "intensity": intensity,
+        "path_valid": path.valid,
+        "alpha_d": gain.alpha_d,
+        "alpha_a": gain.alpha_a,
+        "departure": path.departure,
+        "arrival": path.arrival,
+    }
+    stored = torch.where(path.valid.unsqueeze(-1), path.point, flat_point)
+    return measurement, packet, stored, feature
+
+
+def pack(packet: dict, history: torch.Tensor) -> torch.Tensor:
+    """One packet ``[n, width]``: the parts of :data:`PACKET_PARTS` side by side."""
+    return torch.cat([packet[name] for name in PACKET_PARTS[:-1]] + [history], dim=-1)
+
+
+def conclude(c: StepConstants, state: dict, moved: dict, solution: tuple, noise):
+    """The new state and the step's outputs, given the gimbals ``moved`` and the path ``solution``
+    (P ``[B, 3]``, slopes ``[B, 2]``, converged ``[B]``, iterations ``[B]``)."""
+    point, slope, converged, taken = solution
+    n_w, n_a = c.optics.n_water, c.optics.n_air
+    path = finish_path(point, slope, state["tx_position"], state["rx_position"], converged, taken, n_w, n_a)
+    measurement, packet, stored, feature = record(c, moved, path, state["reference_gain"], state["flat_point"], noise)
+    history = torch.cat((state["last_feature"].unsqueeze(-1), state["history"][:, :-1]), dim=-1)
+    packets = torch.cat((pack(packet, history).unsqueeze(1), state["packets"][:, :-1]), dim=1)
+    new = {
+        **moved,
+        "point": stored,
+        "previous_point": torch.where(path.valid.unsqueeze(-1), state["point"], stored),
+        "history": history,
+        "last_feature": feature,
+        "packets": packets,
+    }
+    outputs = {
+        **measurement,
+        "observation": observe(c, {**state, **new}),
+        "reward": c.reward(measurement["intensity"]).unsqueeze(-1),
+        "truncated": (new["steps"] >= c.max_steps).unsqueeze(-1),
+    }
+    return new, outputs
+
+
+def step(c: StepConstants, state: dict, action: torch.Tensor, noise: torch.Tensor | None):
+    """One step of every link: (new state entries, outputs, the gimbals ``moved``, the solve's result).
+
+    The solve's result is (P, slopes, final (x, y), converged, iterations), for finishing the links
+    that have not converged (:func:`waterair.physics.paths.fixed.finish_unconverged`) and concluding
+    again. ``noise`` is the sensor's draw for this step (:meth:`Sensor.draw`), or None for a noiseless one.
+    """
+    moved = advance(c, state, action)
+    point, slope, xy, converged, taken = solve(c, state, moved["time"])
+    new, outputs = conclude(c, state, moved, (point, slope, converged, taken), noise)
+    return new, outputs, moved, (point, slope, xy, converged, taken)
+
+
+def finish(c: StepConstants, state: dict, moved: dict, solution: tuple, noise, iterations: int):
+    """:func:`step`'s solve continued for ``iterations`` more masked iterations on every link, then concluded.
+
+    For small batches, where a dense pass costs less than gathering the unconverged links; links
+    that had converged take no step. Returns (new state entries, outputs, the solve's result).
+    """
+    point, slope, xy, converged, taken = solution
+    point, slope, xy, converged, more = fixed_newton_terms(
+        *(state[key] for key in SURFACE_KEYS),
+        xy,
+        moved["time"],
+        state["tx_position"],
+        state["rx_position"],
+        c.optics.n_water,
+        c.optics.n_air,
+        iterations,
+        c.tolerance,
+        c.solver.armijo,
+        c.solver.max_step,
+    )
+    taken = taken + more
+    new, outputs = conclude(c, state, moved, (point, slope, converged, taken), noise)
+    return new, outputs, (point, slope, xy, converged, taken)
+
+
+def observe(c: StepConstants, state: dict) -> torch.Tensor:
+    """Every observation part ``[B, 13 + 5 · history_length]``, in the order of the full layout.
+
+    The delivered packet's parts, then the controller's own knowledge (time, action history,
+    geometry), which is never late. An environment keeps the columns of the parts its layout asks
+    for (:func:`observation_columns`), outside the graph, so that every preset shares one graph.
+    """
+    delivered = state["packets"][:, -1]
+    h = state["history"].shape[-1]
+    time = (state["time"] / c.episode_seconds).unsqueeze(-1)
+    geometry = (state["rx_position"] - state["tx_position"])[:, :2] / c.vertical_distance
+    # packet: tx (3), rx (3), intensity (1), spot (2), spot_valid (1), history (h)
+    parts = (delivered[:, :7], time, delivered[:, 7 : 10 + h], state["action_history"].flatten(1), geometry)
+    return torch.cat(parts, dim=-1)
+
+
+def observation_columns(layout: dict[str, slice], history_length: int) -> list[int]:
+    """The columns of :func:`observe`'s output that make up ``layout`` (``EnvConfig.observation_layout``)."""
+    sizes = {"tx_pointing": 3, "rx_pointing": 3, "intensity": 1, "time": 1, "spot": 2, "spot_valid": 1}
+    sizes.update(history=history_length, action_history=4 * history_length, geometry=2)
+    columns, start = [], 0
+    for name, size in sizes.items():
+        if name in layout:
+            columns.extend(range(start, start + size))
+        start += size
+    return columns

@@ -1,0 +1,147 @@
+"""Newton's method with a fixed number of masked iterations (docs/model.md §3, solver 1b).
+
+The same damped Newton iteration on Fermat's principle as :mod:`.newton`, shaped for one compiled
+graph: every link takes the same ``iterations`` steps, converged links are masked rather than
+removed, and the line search is spread over the iterations (a step whose length does not decrease
+enough is refused and the next iteration tries half of it). There is no per-iteration Python, no
+compaction and no host synchronisation, so ``torch.compile`` fuses the whole solve; each iteration
+costs one surface evaluation. Started from a good prediction of the path point (the last two points
+extrapolated: it moves smoothly), most links converge in one iteration.
+
+The fixed count does not change the physics: :func:`solve_newton_fixed` hands the few links that
+have not converged to the adaptive solver, which finishes them from where they stopped.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import torch
+
+from waterair.core.validation import check_int, check_range
+from waterair.physics.paths.newton import NewtonOptions, fermat_terms, iterate_newton, newton_direction
+from waterair.physics.paths.solution import PathSolution, finish_path
+
+
+@dataclass(frozen=True)
+class FixedNewtonOptions:
+    """Settings of the fixed-iteration solver.
+
+    Attributes:
+        iterations: Newton iterations every link takes (one surface evaluation each, plus one at
+            the start point).
+        finish: hand links that have not converged after ``iterations`` to the adaptive solver
+            (:class:`NewtonOptions`); without it they are flagged invalid.
+        tol, armijo, max_step: as in :class:`NewtonOptions`.
+    """
+
+    iterations: int = 2
+    finish: bool = True
+    tol: float | None = None
+    armijo: float = 1e-4
+    max_step: float = 2.0
+
+    def __post_init__(self) -> None:
+        check_int("iterations", self.iterations, 1, 100)
+        if self.tol is not None:
+            check_range("tol", self.tol, 0.0, 1.0, low_open=True)
+        check_range("armijo", self.armijo, 0.0, 0.5, low_open=True, high_open=True)
+        check_range("max_step", self.max_step, 0.0, low_open=True, unit="m")
+
+    def tolerance(self, dtype: torch.dtype) -> float:
+        """The convergence threshold on |∇L| for ``dtype`` (defaults as in :class:`NewtonOptions`)."""
+        return self.tol if self.tol is not None else (1e-11 if dtype == torch.float64 else 2e-5)
+
+
+def fixed_newton_terms(
+    omega, phase, kx, ky, amplitude, xy, t, tx, rx, n_w: float, n_a: float, iterations: int, tol, armijo, max_step
+):
+    """``iterations`` masked Newton iterations from ``xy`` ``[m, 2]``; a pure tensor function.
+
+    Arguments as in :func:`waterair.physics.paths.newton.fermat_terms`, ``t`` ``[m]``. Returns
+    (P ``[m, 3]``, (η_x, η_y) ``[m, 2]``, the final (x, y) ``[m, 2]``, converged ``[m]`` bool,
+    iterations taken ``[m]`` int64).
+    """
+    eps = torch.finfo(xy.dtype).eps
+    length, grad, hess, point, slope = fermat_terms(omega, phase, kx, ky, amplitude, xy, t, tx, rx, n_w, n_a)
+    done = torch.linalg.vector_norm(grad, dim=-1) < tol
+    fraction = torch.ones_like(length)
+    taken = torch.zeros_like(length, dtype=torch.int64)
+    for _ in range(iterations):
+        todo = ~done
+        step = newton_direction(hess, grad, point, tx, rx, n_w, n_a, max_step) * (fraction * todo).unsqueeze(-1)
+        decrease = (grad * step).sum(-1)
+        trial_xy = xy + step
+        trial = fermat_terms(omega, phase, kx, ky, amplitude, trial_xy, t, tx, rx, n_w, n_a)
+        # Below the rounding level of L the decrease test is meaningless: take the step.
+        negligible = -decrease <= 16 * eps * length
+        accept = todo & (negligible | (trial[0] <= length + armijo * decrease))
+        keep = accept.unsqueeze(-1)
+        xy = torch.where(keep, trial_xy, xy)
+        length = torch.where(accept, trial[0], length)
+        grad = torch.where(keep, trial[1], grad)
+        hess = torch.where(keep, trial[2], hess)
+        point = torch.where(keep, trial[3], point)
+        slope = torch.where(keep, trial[4], slope)
+        fraction = torch.where(accept | done, torch.ones_like(fraction), 0.5 * fraction)
+        taken = taken + todo.long()
+        done = torch.linalg.vector_norm(grad, dim=-1) < tol
+    return point, slope, xy, done, taken
+
+
+@functools.cache
+def compiled_fixed_newton():
+    """``torch.compile(fixed_newton_terms)``, built on first use and shared."""
+    return torch.compile(fixed_newton_terms, dynamic=True)
+
+
+def solve_newton_fixed(
+    surface, tx, rx, t, init, n_w, n_a, opts: FixedNewtonOptions, compiled: bool = False
+) -> PathSolution:
+    """The primary path from ``init`` ``[B, 2]`` (m); see :func:`waterair.physics.paths.solve_path`."""
+    batch, dtype = tx.shape[0], tx.dtype
+    time = torch.as_tensor(t, dtype=dtype, device=tx.device).expand(batch).contiguous()
+    point, slope, xy, done, taken = iterate_fixed(surface, tx, rx, time, init.to(dtype), n_w, n_a, opts, compiled)
+    if opts.finish:
+        point, slope, done, taken = finish_unconverged(
+            point, slope, xy, done, taken, surface, tx, rx, time, n_w, n_a, opts, compiled
+        )
+    return finish_path(point, slope, tx, rx, done, taken, n_w, n_a)
+
+
+def iterate_fixed(surface, tx, rx, time, xy, n_w, n_a, opts: FixedNewtonOptions, compiled: bool):
+    """:func:`fixed_newton_terms` on ``surface`` (``time`` ``[B]``), compiled or eagerly."""
+    inputs = (surface.omega, surface.phase, surface.kx, surface.ky, surface.amplitude, xy, time, tx, rx)
+    settings = (n_w, n_a, opts.iterations, opts.tolerance(tx.dtype), opts.armijo, opts.max_step)
+    if not compiled:
+        return fixed_newton_terms(*inputs, *settings)
+    if tx.shape[0] == 1:
+        # torch.compile specialises size 1: evaluate a doubled row rather than compile a second graph.
+        doubled = tuple(v.expand(2, *v.shape[1:]).contiguous() for v in inputs)
+        return tuple(v[:1] for v in compiled_fixed_newton()(*doubled, *settings))
+    return compiled_fixed_newton()(*inputs, *settings)
+
+
+def finish_unconverged(point, slope, xy, done, taken, surface, tx, rx, time, n_w, n_a, opts, compiled: bool):
+    """Finish the links that have not converged (``done`` False), from where they stopped at ``xy``.
+
+    They are gathered and take ``opts.iterations`` more masked iterations, then the adaptive solver
+    (:mod:`.newton`) takes the very few still left. One host synchronisation per stage: whether any
+    link is left. Returns the updated (point, slope, done, taken).
+    """
+    left = (~done).nonzero().squeeze(-1)
+    if left.numel() == 0:
+        return point, slope, done, taken
+    point, slope, done, taken = point.clone(), slope.clone(), done.clone(), taken.clone()
+    sub = surface[left], tx[left], rx[left], time[left]
+    p, s, sub_xy, d, k = iterate_fixed(*sub, xy[left], n_w, n_a, opts, compiled)
+    still = (~d).nonzero().squeeze(-1)
+    if still.numel():
+        adaptive = NewtonOptions(tol=opts.tol, armijo=opts.armijo, max_step=opts.max_step)
+        p[still], s[still], d[still], more = iterate_newton(
+            *(v[still] for v in sub), sub_xy[still], n_w, n_a, adaptive, compiled
+        )
+        k[still] += more
+    point[left], slope[left], done[left], taken[left] = p, s, d, taken[left] + k
+    return point, slope, done, taken
