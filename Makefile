@@ -43,7 +43,9 @@ figures: $(STAMP)
 bench: $(STAMP)
 	$(PYTHON) -m waterair.bench physics --compile --out $(OUT)/bench/physics.json
 	$(PYTHON) -m waterair.bench env --compile --out $(OUT)/bench/env.json
+	$(PYTHON) -m waterair.bench training --out $(OUT)/bench/training.json
 	$(PYTHON) -m waterair.bench evaluate --compile --out $(OUT)/bench/evaluate.json
+	$(PYTHON) -m waterair.bench summary $(OUT)/bench
 
 clean:
 	rm -rf $(VENV) *.egg-info .pytest_cache .ruff_cache

@@ -39,9 +39,7 @@ def rollout(env: WaterAirEnv, actions: torch.Tensor) -> dict[str, torch.Tensor]:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "observation,sensor", [("paper", "ideal"), ("intensity", "ideal"), ("quadrant", "realistic")]
-)
+@pytest.mark.parametrize("observation,sensor", [("paper", "ideal"), ("intensity", "ideal"), ("quadrant", "realistic")])
 @pytest.mark.parametrize("batch", [1, 64])
 def test_compiled_and_eager_steps_agree_over_200_steps(observation, sensor, batch):
     config = preset_config(observation, sensor, batch)

@@ -33,6 +33,8 @@ TINY = [
     "buffer.capacity=20000",
     "actor.hidden=[32,32]",
     "critic.hidden=[32,32]",
+    "compile_update=false",  # compiling costs more than these tiny runs take
+    "env.compile_kernel=false",
 ]
 SCALARS = {
     "train/episode_reward",

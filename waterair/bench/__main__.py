@@ -9,6 +9,9 @@ meaningful. Timings are wall-clock medians after a warm-up.
   batch size, with the floor ratio (:mod:`.env`).
 * ``controllers``: the step time the classical controllers and the realistic sensor add over the
   flat-sea Snell baseline (:mod:`.controllers`).
+* ``training``: a DDPG update against bare PyTorch, train.py's frames per second against
+  Stable-Baselines3 DDPG on our Gymnasium view (:mod:`.training`).
+* ``summary``: the speed targets as ratios, from the JSON files of the suites above (:mod:`.summary`).
 * ``evaluate``: the default evaluation (shipped policy, every baseline, S1-S3), all policies in
   one batch against one rollout per policy (:mod:`.evaluate`).
 
@@ -27,6 +30,8 @@ from waterair.bench.controllers import bench_controllers, controllers_table
 from waterair.bench.env import ENV_HEADER, bench_env
 from waterair.bench.evaluate import bench_evaluate, evaluate_table
 from waterair.bench.physics import bench_physics, physics_table
+from waterair.bench.summary import main as summary
+from waterair.bench.training import bench_training, training_table
 from waterair.core.devices import resolve_device
 from waterair.core.files import atomic_write_json
 from waterair.physics import SeaState
@@ -52,23 +57,37 @@ def main(argv: list[str] | None = None) -> int:
         "--centroid-sizes", type=int, nargs="*", default=[1, 16], help="batch sizes for the centroid solver"
     )
     evaluation = sub.add_parser("evaluate", help="the default evaluate.py work, batched vs one policy at a time")
+    training = sub.add_parser("training", help="DDPG update vs bare PyTorch, train.py vs Stable-Baselines3")
+    training.add_argument("--updates", type=int, default=300, help="timed updates (median reported)")
+    training.add_argument("--frames", type=int, default=40_000, help="frames of each timed train.py run")
+    training.add_argument("--sb3-frames", type=int, default=4_000, help="timed Stable-Baselines3 frames")
+    totals = sub.add_parser("summary", help="print the speed targets as ratios from the suites' JSON files")
+    totals.add_argument("folder", type=Path, nargs="?", default=Path("outputs/bench"))
     controllers = sub.add_parser("controllers", help="step time the classical controllers and sensors add")
     controllers.add_argument("--batch", type=int, default=1024, help="batch size B")
     controllers.add_argument("--steps", type=int, default=50, help="steps per timed rollout")
     controllers.add_argument("--repeats", type=int, default=3, help="timed rollouts per policy (median reported)")
     for p in (physics, env):
         p.add_argument("--dtype", choices=["float32", "float64"], default="float32")
+    training.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
     for p in (physics, env, evaluation, controllers):
         p.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto")
         p.add_argument("--compile", action="store_true", help="evaluate the surface through torch.compile")
         p.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
     args = parser.parse_args(argv)
+    if args.suite == "summary":
+        print(summary(args.folder))
+        return 0
     try:
-        device = resolve_device(args.device)
+        device = resolve_device(getattr(args, "device", "cpu"))
         sea = SeaState(wind=args.wind) if args.suite == "physics" else None
     except ValueError as error:
         parser.exit(2, f"error: {error}\n")
-    if args.suite == "evaluate":
+    if args.suite == "training":
+        record = {"machine": machine(torch.device("cpu"), torch.float32)}
+        record.update(bench_training(args.updates, args.frames, args.sb3_frames))
+        print(training_table(record))
+    elif args.suite == "evaluate":
         record = {"machine": machine(device, torch.float32), **bench_evaluate(args.device, args.compile)}
         print(evaluate_table(record))
     elif args.suite == "controllers":

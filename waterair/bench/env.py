@@ -7,27 +7,30 @@ own; the worker reports JSON on stdout. The sin+cos floor is measured inside the
 from __future__ import annotations
 
 import json
+import os
 import resource
 import subprocess
 import sys
+import tempfile
 import time
 
 import torch
 
 from waterair.bench.common import machine, sincos_floor
 from waterair.core.devices import resolve_device
+from waterair.envs import kernel
 from waterair.envs.env import WaterAirEnv
-from waterair.physics import solve_path
 
 SECONDS_PER_MEASUREMENT = 2.0
 """Each timing runs about this long (at least 5 steps)."""
 SAMPLED_STEPS = 20
-"""Steps over which the solver iterations per step are counted (outside the timed loop)."""
+"""Steps over which the path solve's convergence is counted (outside the timed loop)."""
 
 
 def worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype: str) -> dict:
     """Time raw ``env.step`` and ``env.rollout`` at one batch size (runs inside the worker)."""
     baseline_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    start = time.perf_counter()
     env = WaterAirEnv(
         num_envs=batch,
         seed=0,
@@ -40,7 +43,9 @@ def worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype: st
     td = env.reset()
     generator = torch.Generator().manual_seed(0)
     td["action"] = (2 * torch.rand(batch, 4, generator=generator) - 1).to(env.device)
-    for _ in range(10):  # warm-up: compilation, allocator
+    td = env.step(td)["next"].set("action", td["action"])
+    first_step_s = time.perf_counter() - start  # construction, reset and the first step: the compile
+    for _ in range(40):  # warm-up: the finishing graphs compile when first needed, allocator
         td = env.step(td)["next"].set("action", td["action"])
     start = time.perf_counter()
     for _ in range(3):
@@ -58,7 +63,8 @@ def worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype: st
         torch.cuda.synchronize()
     rollout_s = (time.perf_counter() - start) / steps
     floor = sincos_floor(batch, env.surface.num_harmonics, 5, env.device, env.float_dtype)
-    evaluations = 1.0 + mean_iterations(env, td, SAMPLED_STEPS)
+    solves = solver_counts(env, td, SAMPLED_STEPS) if solver == "newton" else {}
+    evaluations = solves.get("evaluations_per_step", float("nan"))
     peak_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - baseline_kb) / 1024
     if env.device.type == "cuda":
         peak_mb = torch.cuda.max_memory_allocated() / 2**20
@@ -70,34 +76,58 @@ def worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype: st
         "env_steps_per_s": batch / step_s,
         "rollout_env_steps_per_s": batch / rollout_s,
         "sincos_floor_s": floor,
-        "evaluations_per_step": evaluations,
+        **solves,
         "floor_ratio": step_s / (evaluations * floor),
+        "first_step_s": first_step_s,
         "peak_memory_mb": peak_mb,
     }
 
 
-def mean_iterations(env: WaterAirEnv, td, steps: int) -> float:
-    """Mean solver iterations of the path solve in each of the next ``steps`` steps.
+def solver_counts(env: WaterAirEnv, td, steps: int) -> dict:
+    """How the step's path solve fares over the next ``steps`` steps (counted outside the timed loop).
 
-    Before each step the same warm-started solve the step will make is repeated outside it (the
-    path point of the last step, the next time), so the timed steps carry no counting.
+    Before each step the step's own fixed-iteration solve is repeated eagerly on the same state:
+    ``evaluations_per_step`` surface evaluations per link in the step's graph (1 + iterations),
+    ``unconverged_fraction`` the links it leaves to the finishing stage, ``finishing_steps`` the
+    share of steps that need that stage at all.
     """
-    counts = []
+    unconverged, finishing = [], []
     for _ in range(steps):
-        path = solve_path(
-            env.surface,
-            env.tx_position,
-            env.rx_position,
-            env.time + env.config.dt,
-            env.config.solver,
-            init=env.point[:, :2],
-            n_water=env.optics.n_water,
-            n_air=env.optics.n_air,
-            compiled=env.config.compile_kernel,
-        )
-        counts.append(path.iterations.double().mean().item())
+        state = env._full_state()
+        time_next = state["time"] + env.config.dt
+        left = ~kernel.solve(env.constants, state, time_next)[3]
+        unconverged.append(left.double().mean().item())
+        finishing.append(float(left.any()))
         td = env.step(td)["next"].set("action", td["action"])
-    return sum(counts) / len(counts)
+    return {
+        "evaluations_per_step": 1.0 + env.config.newton_iterations,
+        "unconverged_fraction": sum(unconverged) / steps,
+        "finishing_steps": sum(finishing) / steps,
+    }
+
+
+def compile_times(batch: int = 16) -> dict:
+    """Seconds to build a compiled env and take its first step with torch's compile cache cold, then warm.
+
+    Each runs in a fresh process with its own (new, then reused) ``TORCHINDUCTOR_CACHE_DIR``.
+    """
+    code = (
+        "import time, torch; start = time.perf_counter(); "
+        "from waterair.envs.env import WaterAirEnv; "
+        f"env = WaterAirEnv(num_envs={batch}, seed=0, compile_kernel=True); td = env.reset(); "
+        f"env.step(td.set('action', torch.zeros({batch}, 4))); print(time.perf_counter() - start)"
+    )
+    record = {}
+    with tempfile.TemporaryDirectory() as cache:
+        environment = {**os.environ, "TORCHINDUCTOR_CACHE_DIR": cache}
+        for name in ("cold_s", "warm_s"):
+            done = subprocess.run(
+                [sys.executable, "-c", code], capture_output=True, text=True, env=environment, check=False
+            )
+            if done.returncode != 0:
+                raise RuntimeError(f"compile-time probe failed:\n{done.stderr[-2000:]}")
+            record[name] = float(done.stdout.strip().splitlines()[-1])
+    return {"batch": batch, **record}
 
 
 def bench_env(sizes, centroid_sizes, compile_kernel: bool, device: str, dtype: str) -> dict:
@@ -121,24 +151,38 @@ def bench_env(sizes, centroid_sizes, compile_kernel: bool, device: str, dtype: s
             rows.append(json.loads(done.stdout.strip().splitlines()[-1]))
             print(env_row(rows[-1]), flush=True)
     resolved = resolve_device(device)
-    return {
+    record = {
         "benchmark": "env",
         **machine(resolved, getattr(torch, dtype)),
         "compiled_kernel": compile_kernel,
         "rows": rows,
     }
+    if compile_kernel:
+        record["compile"] = compile_times()
+        print(
+            f"\ncompile (B = 16, build + first step): cold cache {record['compile']['cold_s']:.1f} s, "
+            f"warm cache {record['compile']['warm_s']:.1f} s"
+        )
+    return record
 
 
 ENV_HEADER = (
-    "| B | solver | env-steps/s (step loop) | env-steps/s (rollout) | evals/step | floor ratio | peak memory (MB) |\n"
-    "|---|---|---|---|---|---|---|"
+    "| B | solver | env-steps/s (step loop) | env-steps/s (rollout) | evals/step | left to finish "
+    "| steps finishing | floor ratio | peak memory (MB) |\n"
+    "|---|---|---|---|---|---|---|---|---|"
 )
 
 
 def env_row(r: dict) -> str:
+    solve = (
+        f"| {r['evaluations_per_step']:.0f} | {100 * r['unconverged_fraction']:.1f} % "
+        f"| {100 * r['finishing_steps']:.0f} % | {r['floor_ratio']:.2f} "
+        if "unconverged_fraction" in r
+        else "| – | – | – | – "
+    )
     return (
         f"| {r['batch']} | {r['solver']} | {r['env_steps_per_s']:,.0f} | {r['rollout_env_steps_per_s']:,.0f} "
-        f"| {r['evaluations_per_step']:.2f} | {r['floor_ratio']:.2f} | {r['peak_memory_mb']:.0f} |"
+        f"{solve}| {r['peak_memory_mb']:.0f} |"
     )
 
 

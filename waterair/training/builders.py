@@ -135,11 +135,14 @@ def make_collector(cfg: DictConfig, env, policy, frames_done: int) -> Collector:
 
 
 def make_update(cfg: DictConfig, loss, target_update, optim_actor, optim_critic):
-    """One gradient step on a sampled batch; the actor steps every ``agent.policy_delay`` updates (TD3)."""
+    """One gradient step on a sampled batch; the actor steps every ``agent.policy_delay`` updates (TD3).
+
+    The step returns the (actor, critic) losses as a detached ``[2]`` tensor.
+    """
     value_key = "loss_qvalue" if cfg.agent.name == "td3" else "loss_value"
     policy_delay = cfg.agent.policy_delay if cfg.agent.name == "td3" else 1
 
-    def update(batch: TensorDict, count: int) -> tuple[float, float]:
+    def update(batch: TensorDict, count: int) -> torch.Tensor:
         losses = loss(batch)
         # Only the loss_* entries: the other outputs (pred_value, ...) still require grad.
         update_actor = count % policy_delay == 0
@@ -151,6 +154,8 @@ def make_update(cfg: DictConfig, loss, target_update, optim_actor, optim_critic)
         if update_actor:
             optim_actor.step()
         target_update.step()
-        return losses["loss_actor"].item(), losses[value_key].item()
+        # Detached, not .item(): no host synchronisation (and no graph break) per update; the loop
+        # turns a whole batch of these into numbers once.
+        return torch.stack((losses["loss_actor"], losses[value_key])).detach()
 
     return torch.compile(update) if cfg.compile_update else update

@@ -138,8 +138,8 @@ def batch_scalars(batch, losses, noise, env_seconds: float, update_seconds: floa
     if done.any():
         scalars["train/episode_reward"] = nxt["episode_reward"][done].double().mean().item()
     if losses:
-        scalars["loss/actor"] = sum(a for a, _ in losses) / len(losses)
-        scalars["loss/critic"] = sum(c for _, c in losses) / len(losses)
+        actor_loss, critic_loss = torch.stack(losses).double().mean(0).tolist()  # one host sync per batch
+        scalars["loss/actor"], scalars["loss/critic"] = actor_loss, critic_loss
     return scalars
 
 

@@ -1,0 +1,64 @@
+"""The speed targets as ratios: ``python -m waterair.bench summary DIR`` reads the suites' JSON files.
+
+Each ratio comes from numbers measured in one suite run (one process tree, one machine), so
+they are comparable; the summary only divides and prints them beside their targets.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+PAPER_FRAMES = 250_000
+
+
+def _load(folder: Path, suite: str) -> dict | None:
+    path = folder / f"{suite}.json"
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def summary_lines(folder: Path) -> list[str]:
+    """One table row per target: what was measured, the ratio, the target, met or not."""
+    rows = []
+
+    def row(name: str, value: str, target: str, met: bool | None) -> None:
+        rows.append(f"| {name} | {value} | {target} | {'–' if met is None else ('yes' if met else 'no')} |")
+
+    env = _load(folder, "env")
+    if env is not None:
+        by_batch = {r["batch"]: r for r in env["rows"] if r["solver"] == "newton"}
+        for batch, target in ((1024, 100_000), (16, 20_000)):
+            if batch in by_batch:
+                rate = by_batch[batch]["env_steps_per_s"]
+                row(f"env-steps/s at B = {batch}", f"{rate:,.0f}", f"≥ {target:,}", rate >= target)
+        if 1024 in by_batch:
+            r = by_batch[1024]
+            row(
+                "step / (evaluations × sin+cos floor), B = 1024",
+                f"{r['floor_ratio']:.2f} ({r['evaluations_per_step']:.0f} evaluations)",
+                "≤ 1.5",
+                r["floor_ratio"] <= 1.5,
+            )
+        if "compile" in env:
+            c = env["compile"]
+            cold_warm = f"{c['cold_s']:.0f} / {c['warm_s']:.0f}"
+            row("compile, cold / warm cache (s)", cold_warm, "paid once per machine", None)
+    training = _load(folder, "training")
+    if training is not None:
+        update = training["update"]
+        row(
+            "DDPG update / bare PyTorch (compiled, eager)",
+            f"{update['ratio_compiled']:.2f}, {update['ratio_eager']:.2f}",
+            "≤ 1.2",
+            update["ratio_compiled"] <= 1.2,
+        )
+        if training.get("sb3"):
+            ratio = training["train_over_sb3"]
+            row("train.py / SB3 DDPG frames/s", f"{ratio:.1f}", "≥ 10", ratio >= 10)
+        minutes = PAPER_FRAMES / training["train"]["frames_per_s"] / 60
+        row("paper budget (250,000 frames) at train.py's rate", f"{minutes:.1f} min", "≤ 6 min", minutes <= 6)
+    return ["| quantity | measured | target | met |", "|---|---|---|---|", *rows]
+
+
+def main(folder: Path) -> str:
+    return "\n".join(summary_lines(folder))
