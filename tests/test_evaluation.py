@@ -289,7 +289,8 @@ def test_the_shipped_policy_is_a_trained_default_policy():
     default = compose_config("config")
     # It was trained before frames_per_batch went from 800 to 400 (so it collected 250,400 frames);
     # that only changes how often the collector hands over frames, not the updates per frame.
-    allowed = {"device", "seed", "frames_per_batch"}
+    # compile_kernel only changes speed (compiled and eager steps agree, tests/test_compiled_step.py).
+    allowed = {"device", "seed", "frames_per_batch", "compile_kernel"}
     for group in ("env", "reward", "agent", "actor", "critic", "noise", "collector", "buffer"):
         shipped = OmegaConf.to_container(policy.config[group], resolve=True)
         current = OmegaConf.to_container(default[group], resolve=True)
