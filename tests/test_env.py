@@ -227,9 +227,12 @@ def test_unknown_config_key_is_an_error():
 def test_a_compiled_and_an_eager_env_coexist_with_matching_gain_traces():
     """The compiled kernel belongs to its env: an eager env built after it stays eager and agrees with it."""
     counters = torch._dynamo.utils.counters["stats"]
-    compiled = small_env(num_envs=8, compile_kernel=True)
+    # The configuration of tests/test_compiled_step.py's paper preset, so that a whole test run
+    # compiles this graph once.
+    config = {"num_envs": 8, "seed": 0, "max_steps": 10**6}
+    compiled = WaterAirEnv(**config, compile_kernel=True)
     traced_before = counters["calls_captured"]
-    eager = small_env(num_envs=8)
+    eager = WaterAirEnv(**config)
     actions = 0.3 * torch.randn(40, 8, 4, generator=torch.Generator().manual_seed(2))
     traces = {}
     for name, env in (("compiled", compiled), ("eager", eager)):

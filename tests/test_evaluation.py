@@ -34,6 +34,8 @@ TRAIN_TINY = [
     "buffer.capacity=2000",
     "actor.hidden=[32,32]",
     "critic.hidden=[32,32]",
+    "compile_update=false",  # compiling costs more than this tiny run takes
+    "env.compile_kernel=false",
 ]
 EVAL_TINY = [
     "env.n_freq=16",
