@@ -139,8 +139,9 @@ def finish_unconverged(point, slope, xy, done, taken, surface, tx, rx, time, n_w
     still = (~d).nonzero().squeeze(-1)
     if still.numel():
         adaptive = NewtonOptions(tol=opts.tol, armijo=opts.armijo, max_step=opts.max_step)
+        sub_surface, sub_tx, sub_rx, sub_time = (v[still] for v in sub)
         p[still], s[still], d[still], more = iterate_newton(
-            *(v[still] for v in sub), sub_xy[still], n_w, n_a, adaptive, compiled
+            sub_surface, sub_tx, sub_rx, sub_time, sub_xy[still], n_w, n_a, adaptive, compiled
         )
         k[still] += more
     point[left], slope[left], done[left], taken[left] = p, s, d, taken[left] + k
