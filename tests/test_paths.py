@@ -32,14 +32,15 @@ def snell_residual(path) -> torch.Tensor:
     return torch.linalg.vector_norm(N_W * cross_d - N_A * cross_a, dim=-1)
 
 
+@pytest.mark.parametrize("method,compiled", [("newton", False), ("newton_fixed", False)])
 @pytest.mark.parametrize("offset_ratio,azimuth", [(0.0, 0.0), (0.1, 0.0), (0.3, 120.0), (1.0, -45.0)])
-def test_flat_sea_newton_matches_bisection(offset_ratio, azimuth):
+def test_flat_sea_newton_matches_bisection(offset_ratio, azimuth, method, compiled):
     link = LinkGeometry(tx_depth=8.0, rx_height=12.0, offset_ratio=offset_ratio, offset_azimuth_deg=azimuth)
     tx, rx = link.positions(torch.float64)
     surface = WaveSurface.sample(SeaState(flat=True), 4, seed=0, dtype=torch.float64)
     # start away from the answer so that Newton has work to do
     init = torch.tensor([[3.0, -2.0]], dtype=torch.float64).expand(4, 2)
-    path = solve_path(surface, tx, rx, 0.0, init=init)
+    path = solve_path(surface, tx, rx, 0.0, method=method, init=init, compiled=compiled)
     assert path.valid.all()
     s = snell_bisection(8.0, 12.0, link.horizontal_offset)
     phi = math.radians(azimuth)
@@ -133,7 +134,7 @@ def test_iteration_cap_flags_paths_invalid_never_nan(default_positions):
     fetch=st.floats(1e3, 1e6),
     offset=st.floats(0.0, 1.0),
     seed=st.integers(0, 2**31 - 1),
-    method=st.sampled_from(["newton", "centroid"]),
+    method=st.sampled_from(["newton", "newton_fixed", "centroid"]),
 )
 def test_no_nan_or_inf_for_any_sea(wind, fetch, offset, seed, method):
     tx, rx = LinkGeometry(offset_ratio=offset).positions(torch.float32)
