@@ -317,8 +317,8 @@ class WaterAirEnv(EnvBase):
             n_air=self.optics.n_air,
             compiled=self.config.compile_kernel,
         )
-        tilts = {"tx_tilt": torch.zeros_like(zero).unsqueeze(-1).expand(-1, 2), "rx_tilt": None}
-        tilts["rx_tilt"] = tilts["tx_tilt"]
+        upright = torch.zeros(rows.numel(), 2, device=self.device, dtype=dtype)
+        tilts = {"tx_tilt": upright, "rx_tilt": upright}
         noise = self.sensor.draw(rows.numel(), dtype, self.device)
         measurement, packet, stored, feature = kernel.record(self.constants, tilts, path, reference, flat, noise)
         no_history = torch.zeros(rows.numel(), config.history_length, device=self.device, dtype=dtype)

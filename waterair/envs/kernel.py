@@ -111,17 +111,18 @@ def predicted_point(state: dict) -> torch.Tensor:
     return 2.0 * state["point"][:, :2] - state["previous_point"][:, :2]
 
 
-def solve(c: StepConstants, state: dict, time: torch.Tensor):
-    """The fixed-iteration Newton solve from the predicted point: (P, slopes, final (x, y), converged, iterations)."""
+def solve(c: StepConstants, state: dict, time: torch.Tensor, start=None, iterations: int | None = None):
+    """Masked Newton iterations (``c.solver.iterations`` by default) from ``start`` (default: the predicted
+    point): (P ``[B, 3]``, slopes ``[B, 2]``, final (x, y) ``[B, 2]``, converged ``[B]``, iterations ``[B]``)."""
     return fixed_newton_terms(
         *(state[key] for key in SURFACE_KEYS),
-        predicted_point(state),
+        predicted_point(state) if start is None else start,
         time,
         state["tx_position"],
         state["rx_position"],
         c.optics.n_water,
         c.optics.n_air,
-        c.solver.iterations,
+        c.solver.iterations if iterations is None else iterations,
         c.tolerance,
         c.solver.armijo,
         c.solver.max_step,
@@ -213,20 +214,8 @@ def finish(c: StepConstants, state: dict, moved: dict, solution: tuple, noise, i
     For small batches, where a dense pass costs less than gathering the unconverged links; links
     that had converged take no step. Returns (new state entries, outputs, the solve's result).
     """
-    point, slope, xy, converged, taken = solution
-    point, slope, xy, converged, more = fixed_newton_terms(
-        *(state[key] for key in SURFACE_KEYS),
-        xy,
-        moved["time"],
-        state["tx_position"],
-        state["rx_position"],
-        c.optics.n_water,
-        c.optics.n_air,
-        iterations,
-        c.tolerance,
-        c.solver.armijo,
-        c.solver.max_step,
-    )
+    xy, taken = solution[2], solution[4]
+    point, slope, xy, converged, more = solve(c, state, moved["time"], xy, iterations)
     taken = taken + more
     new, outputs = conclude(c, state, moved, (point, slope, converged, taken), noise)
     return new, outputs, (point, slope, xy, converged, taken)
