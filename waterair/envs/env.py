@@ -94,9 +94,8 @@ class WaterAirEnv(EnvBase):
         )
         self.constants = StepConstants.of(config, self.sensor, self.reward_fn)
         self.stepper = Stepper(self.constants, config.solver, config.compile_kernel)
-        columns = kernel.observation_columns(config.observation_layout, config.history_length)
-        full = len(columns) == 13 + 5 * config.history_length
-        self._columns = None if full else torch.tensor(columns, device=self.device)
+        columns = kernel.observation_columns(config)
+        self._columns = None if columns is None else torch.tensor(columns, device=self.device)
         self._allocate_state()
         self._reset_rows(torch.arange(config.num_envs, device=self.device))
 

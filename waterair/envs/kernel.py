@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import torch
 
-from waterair.envs.config import EnvConfig
+from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import PACKET_PARTS, Sensor, intensity_feature, spot_position
 from waterair.physics.channel import Transceiver, channel_gain, gain_upper_bound, pointing
@@ -237,13 +237,12 @@ def observe(c: StepConstants, state: dict) -> torch.Tensor:
     return torch.cat(parts, dim=-1)
 
 
-def observation_columns(layout: dict[str, slice], history_length: int) -> list[int]:
-    """The columns of :func:`observe`'s output that make up ``layout`` (``EnvConfig.observation_layout``)."""
-    sizes = {"tx_pointing": 3, "rx_pointing": 3, "intensity": 1, "time": 1, "spot": 2, "spot_valid": 1}
-    sizes.update(history=history_length, action_history=4 * history_length, geometry=2)
-    columns, start = [], 0
-    for name, size in sizes.items():
-        if name in layout:
-            columns.extend(range(start, start + size))
-        start += size
-    return columns
+def observation_columns(config: EnvConfig) -> list[int] | None:
+    """The columns of :func:`observe`'s output that make up ``config``'s layout, or None for all of them.
+
+    :func:`observe` gives the layout of every part (:data:`OBSERVATION_EXTRAS` all on).
+    """
+    full = config.replace(observation_extras=OBSERVATION_EXTRAS).observation_layout
+    if len(config.observation_layout) == len(full):
+        return None
+    return [column for name in config.observation_layout for column in range(full[name].start, full[name].stop)]
