@@ -20,7 +20,7 @@ from waterair.physics.paths import flat_sea_point
 class PointingPolicy(TensorDictModuleBase):
     """Base class: subclasses say where each end should point; this turns it into an action."""
 
-    in_keys = ["tx_position", "rx_position", "observation", "tilt"]
+    in_keys = ["tx_position", "rx_position", "observation", "tilt", "base_tilt"]
     out_keys = ["action"]
     name = "pointing"
     required_extras: tuple[str, ...] = ()
@@ -37,8 +37,11 @@ class PointingPolicy(TensorDictModuleBase):
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
         tx_dir, rx_dir = self.directions(tensordict)
         # The present (commanded) tilts come with each row, so the policy acts correctly on a slice
-        # of the batch, and in delta mode also when the sensors' pointing telemetry is late.
-        tensordict.set("action", self.env.action_for_pointing(tx_dir, rx_dir, tensordict.get("tilt")))
+        # of the batch, and in delta mode also when the sensors' pointing telemetry is late; in
+        # residual mode each row's base controller tilts come with it too.
+        base = tensordict.get("base_tilt", None)
+        action = self.env.action_for_pointing(tx_dir, rx_dir, tensordict.get("tilt"), base)
+        tensordict.set("action", action)
         return tensordict
 
 
@@ -81,7 +84,7 @@ class PreviousPathTracking(PointingPolicy):
     flat-sea path where the previous path was invalid.
     """
 
-    in_keys = ["tx_position", "rx_position", "observation", "tilt", "departure", "arrival", "path_valid"]
+    in_keys = [*PointingPolicy.in_keys, "departure", "arrival", "path_valid"]
     name = "tracking"
 
     def directions(self, tensordict):

@@ -18,7 +18,9 @@ from waterair.core.validation import check_choice, check_int, check_range
 from waterair.physics.channel import LinkGeometry, Transceiver
 from waterair.physics.sea import SeaState
 
-ACTION_MODES = ("absolute", "delta")
+ACTION_MODES = ("absolute", "delta", "residual")
+RESIDUAL_BASES = ("flat_snell", "aoa_tracker")
+"""What residual actions correct: flat-sea Snell pointing, or the quadrant-detector back-projection."""
 PER_LINK = {
     "wind": (0.0, 60.0, "m/s"),
     "offset": (0.0, 10.0, ""),
@@ -28,6 +30,15 @@ PER_LINK = {
 """Quantities each link may draw from ``<name>_range`` or take from ``<name>_values``: (low, high, unit)."""
 OBSERVATION_EXTRAS = ("spot", "spot_valid", "history", "action_history", "geometry")
 """Opt-in observation parts, in the order they follow the paper's 8 (docs/environment.md)."""
+SENSOR_KEYS = (
+    "latency_steps",
+    "intensity_noise",
+    "intensity_noise_floor",
+    "intensity_saturation",
+    "spot_noise_rad",
+    "spot_threshold",
+)
+"""The sensing keys (presets: env/sensor=ideal|ideal_late|realistic)."""
 DTYPES = ("float32", "float64")
 ENV_SOLVERS = ("newton", "centroid")
 """Path solvers of the step: fixed-iteration Newton in the step's graph, or the paper's centroid method."""
@@ -66,11 +77,14 @@ class EnvConfig:
     # dynamics and interface (docs/environment.md)
     dt: float = 0.05  # s
     max_steps: int = 500  # steps per episode (truncation)
-    action_mode: str = "absolute"  # absolute | delta
+    action_mode: str = "absolute"  # absolute | delta | residual (on top of the flat-sea Snell pointing)
+    residual_deg: float = 15.0  # residual mode: the largest deviation from the base controller's pointing
+    residual_base: str = "flat_snell"  # residual mode: flat_snell | aoa_tracker (needs spot and spot_valid)
     max_tilt_deg: float = 45.0  # largest pointing tilt from vertical
     max_slew_deg_s: float = 60.0  # delta mode: largest tilt change per second
     observation_extras: tuple[str, ...] = ()  # any of OBSERVATION_EXTRAS; presets: env/observation=
     history_length: int = 4  # readings kept by the "history" and "action_history" extras
+    frames: int = 1  # the last `frames` observations side by side, newest first (1: no stacking)
     solver: str = "newton"  # newton | centroid
     newton_iterations: int = 3  # masked Newton iterations of the compiled step; the rare rest finish adaptively
     # sensing (docs/environment.md, "Sensing"); all 0 / null: the ideal sensor (preset env/sensor=ideal)
@@ -109,11 +123,20 @@ class EnvConfig:
         check_choice("env.action_mode", self.action_mode, ACTION_MODES)
         check_range("env.max_tilt_deg", self.max_tilt_deg, 0.0, 90.0, low_open=True, high_open=True, unit="deg")
         check_range("env.max_slew_deg_s", self.max_slew_deg_s, 0.0, 1e5, low_open=True, unit="deg/s")
+        check_range("env.residual_deg", self.residual_deg, 0.0, 90.0, low_open=True, high_open=True, unit="deg")
         _check_list("env.observation_extras", self.observation_extras)
         object.__setattr__(self, "observation_extras", tuple(self.observation_extras))
         for extra in self.observation_extras:
             check_choice("env.observation_extras", extra, OBSERVATION_EXTRAS)
         check_int("env.history_length", self.history_length, 1, 1000)
+        check_choice("env.residual_base", self.residual_base, RESIDUAL_BASES)
+        needs = {"spot", "spot_valid"} - set(self.observation_extras)
+        if self.action_mode == "residual" and self.residual_base == "aoa_tracker" and needs:
+            raise ValueError(
+                f"env.residual_base = 'aoa_tracker' needs the spot in the observation (env.observation_extras "
+                f"lacks {', '.join(sorted(needs))}); use env/observation=quadrant or env.residual_base=flat_snell"
+            )
+        check_int("env.frames", self.frames, 1, 64)
         check_int("env.latency_steps", self.latency_steps, 0, 1000)
         check_range("env.intensity_noise", self.intensity_noise, 0.0, 10.0)
         check_range("env.intensity_noise_floor", self.intensity_noise_floor, 0.0, 10.0)
@@ -203,6 +226,11 @@ class EnvConfig:
         )
 
     @property
+    def sensing(self) -> dict:
+        """The sensing keys and their values (:data:`SENSOR_KEYS`)."""
+        return {key: getattr(self, key) for key in SENSOR_KEYS}
+
+    @property
     def max_tilt(self) -> float:
         """sin(max_tilt): the largest norm of a tilt vector."""
         return math.sin(math.radians(self.max_tilt_deg))
@@ -231,9 +259,14 @@ class EnvConfig:
         return layout
 
     @property
-    def observation_size(self) -> int:
-        """Length of the observation vector: 8 plus the opt-in extras."""
+    def frame_size(self) -> int:
+        """Length of one observation frame: 8 plus the opt-in extras (where the layout's parts sit)."""
         return max(part.stop for part in self.observation_layout.values())
+
+    @property
+    def observation_size(self) -> int:
+        """Length of the observation vector: ``frames`` frames of :attr:`frame_size`, newest first."""
+        return self.frame_size * self.frames
 
     @property
     def episode_seconds(self) -> float:

@@ -13,8 +13,7 @@ import math
 import torch
 
 from waterair.envs.baselines import FlatSeaSnell, PointingPolicy
-from waterair.envs.sensors import intensity_from_feature, receiver_frame
-from waterair.physics.optics import unit_vector
+from waterair.envs.sensors import back_projection, intensity_from_feature
 
 
 class AoATracker(PointingPolicy):
@@ -38,17 +37,9 @@ class AoATracker(PointingPolicy):
         observation = tensordict.get("observation")
         boresight = self.env.observation_part(observation, "rx_pointing")
         spot = self.env.observation_part(observation, "spot")
-        e1, e2 = receiver_frame(boresight)
-        scale = math.tan(self.env.optics.half_fov)
-        toward_surface = unit_vector(boresight + scale * (spot[:, :1] * e1 + spot[:, 1:] * e2))
-        rx = tensordict.get("rx_position")
-        down = toward_surface[:, 2] < -1e-6
-        reach = -rx[:, 2] / torch.where(down, toward_surface[:, 2], -torch.ones_like(rx[:, 2]))
-        sea_point = rx + reach.unsqueeze(-1) * toward_surface
-        tx_dir = unit_vector(sea_point - tensordict.get("tx_position"))
-        seen = (self.env.observation_part(observation, "spot_valid")[:, 0] > 0.5) & down
-        seen = seen.unsqueeze(-1)
-        return torch.where(seen, tx_dir, flat_tx), torch.where(seen, toward_surface, flat_rx)
+        seen = self.env.observation_part(observation, "spot_valid")[:, 0] > 0.5
+        tx, rx = tensordict.get("tx_position"), tensordict.get("rx_position")
+        return back_projection(boresight, spot, seen, tx, rx, (flat_tx, flat_rx), self.env.optics.half_fov)
 
 
 class IntensityDither(PointingPolicy):

@@ -13,6 +13,7 @@ from torchrl.envs import EnvBase
 from waterair.core.devices import resolve_device
 from waterair.envs import kernel
 from waterair.envs.config import EnvConfig
+from waterair.envs.frames import FrameStack
 from waterair.envs.kernel import MEASUREMENT_KEYS, SURFACE_KEYS, StepConstants
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import Sensor, packet_sizes
@@ -30,8 +31,11 @@ class WaterAirEnv(EnvBase):
 
     **Action** ``[B, 4]`` in [-1, 1]: (tx_vx, tx_vy, rx_vx, rx_vy). In ``absolute`` mode the tilt
     vectors are action · sin(max_tilt); in ``delta`` mode action · sin(max_slew · dt) is added to
-    the current tilt (a slew-rate-limited gimbal). Tilts are then limited to |v| ≤ sin(max_tilt);
-    the transmitter points (v, +sqrt(1 − |v|²)) and the receiver (v, −sqrt(1 − |v|²)). Values
+    the current tilt (a slew-rate-limited gimbal); in ``residual`` mode action · sin(residual_deg)
+    is added to the tilts of a base controller (``residual_base``: flat-sea Snell, or the quadrant
+    back-projection of the delivered packet), so the agent corrects it and never starts blind.
+    Tilts are then limited to |v| ≤ sin(max_tilt); the transmitter points (v, +sqrt(1 − |v|²))
+    and the receiver (v, −sqrt(1 − |v|²)). Values
     outside [-1, 1] are clipped; NaN actions raise ``ValueError``.
 
     **Observation** ``[B, 8]``: transmitter pointing (3), receiver pointing (3), the intensity
@@ -41,7 +45,8 @@ class WaterAirEnv(EnvBase):
     spot then 0), ``history`` (``history_length`` previous intensity features, newest first),
     ``action_history`` (the last ``history_length`` actions, newest first) and ``geometry`` (2: the
     drone's horizontal position relative to the transmitter over tx_depth + rx_height).
-    ``EnvConfig.observation_layout`` names where each part sits.
+    ``EnvConfig.observation_layout`` names where each part sits. With ``frames`` = k > 1 the
+    observation is the last k such frames side by side, newest first (a reset repeats its first).
 
     **Sensing**: pointing, intensity, spot and history come in a measurement packet that reaches
     the observation ``latency_steps`` late, with the sensor's noise, saturation and gating
@@ -64,7 +69,8 @@ class WaterAirEnv(EnvBase):
     Besides the observation each step writes ``gain`` G (1/m²), ``gain_upper_bound`` G_UB,
     ``intensity`` I, ``path_valid``, ``alpha_d``/``alpha_a`` (rad), ``departure``/``arrival`` unit
     path directions, ``tx_position``/``rx_position`` (m) and ``tilt``, the present tilt vectors
-    (tx_vx, tx_vy, rx_vx, rx_vy) the gimbals were commanded to, for evaluation and the baselines.
+    (tx_vx, tx_vy, rx_vx, rx_vy) the gimbals were commanded to, for evaluation and the baselines,
+    and ``base_tilt``, the residual base controller's tilts for the next action.
     The simulator state lives on the device chosen at construction.
     """
 
@@ -97,6 +103,9 @@ class WaterAirEnv(EnvBase):
         columns = kernel.observation_columns(config)
         self._columns = None if columns is None else torch.tensor(columns, device=self.device)
         self._allocate_state()
+        self._stack = None
+        if config.frames > 1:
+            self._stack = FrameStack(config.num_envs, config.frames, config.frame_size, self.float_dtype, self.device)
         self._reset_rows(torch.arange(config.num_envs, device=self.device))
 
     # --- TorchRL interface ------------------------------------------------------------------
@@ -109,7 +118,9 @@ class WaterAirEnv(EnvBase):
             rows = mask.reshape(self.batch_size[0], -1).any(-1).nonzero().squeeze(-1)
         if rows.numel():
             self._reset_rows(rows)
-        out = self._output(kernel.observe(self.constants, self._full_state()))
+        full = self._full_state()
+        self._base_tilt = kernel.base_tilts(self.constants, full)
+        out = self._output(kernel.observe(self.constants, full), reset=rows)
         done = torch.zeros(*self.batch_size, 1, dtype=torch.bool, device=self.device)
         out.update({"done": done, "terminated": done.clone(), "truncated": done.clone()})
         return out
@@ -126,6 +137,7 @@ class WaterAirEnv(EnvBase):
         new, outputs = self.stepper(self.surface, self._full_state(), action, noise)
         self.state.update(new)
         self.measurement = {key: outputs[key] for key in MEASUREMENT_KEYS}
+        self._base_tilt = outputs["base_tilt"]
         out = self._output(outputs["observation"])
         truncated = outputs["truncated"]
         out.update(
@@ -165,17 +177,25 @@ class WaterAirEnv(EnvBase):
         return observation[..., self.config.observation_layout[name]]
 
     def action_for_pointing(
-        self, tx_dir: torch.Tensor, rx_dir: torch.Tensor, current: torch.Tensor | None = None
+        self,
+        tx_dir: torch.Tensor,
+        rx_dir: torch.Tensor,
+        current: torch.Tensor | None = None,
+        base: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """The action ``[n, 4]`` that best points the ends along ``tx_dir`` (up) and ``rx_dir`` (down).
 
         Absolute mode: the target tilts (clipped to the action box); delta mode: the step toward
         them allowed by the slew limit, from the ``current`` tilts ``[n, 4]`` (tx_vx, tx_vy,
-        rx_vx, rx_vy; default: the whole batch's present pointing).
+        rx_vx, rx_vy; default: the whole batch's present pointing); residual mode: the deviation
+        from the base controller's tilts ``base`` ``[n, 4]`` (the ``base_tilt`` key; default: the batch's).
         """
         target = torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1).to(self.float_dtype)
         if self.config.action_mode == "absolute":
             return (target / self.config.max_tilt).clamp(-1.0, 1.0)
+        if self.config.action_mode == "residual":
+            base = self._base_tilt if base is None else base.to(self.float_dtype)
+            return ((target - base) / self.constants.residual).clamp(-1.0, 1.0)
         if current is None:
             current = self.tilt
         return ((target - current.to(self.float_dtype)) / self.constants.slew_step).clamp(-1.0, 1.0)
@@ -202,6 +222,7 @@ class WaterAirEnv(EnvBase):
             tx_position=vector(3),
             rx_position=vector(3),
             tilt=vector(4),
+            base_tilt=vector(4),
         )
         self.action_spec_unbatched = Bounded(low=-1.0, high=1.0, shape=(4,), dtype=dtype)
         self.reward_spec_unbatched = Unbounded(shape=(1,), dtype=dtype)
@@ -233,6 +254,7 @@ class WaterAirEnv(EnvBase):
             # the packets in flight, newest first; the controller sees the last slot
             "packets": zeros(self.config.latency_steps + 1, sum(packet_sizes(history))),
         }
+        self._base_tilt = zeros(4)  # the residual base controller's tilts for the next action
         self.measurement = {
             "gain": zeros(),
             "gain_upper_bound": zeros(),
@@ -353,10 +375,13 @@ class WaterAirEnv(EnvBase):
             return torch.tensor(values, dtype=torch.float64)[rows.cpu() % len(values)]
         return None if default is None else torch.full((count,), default, dtype=torch.float64)
 
-    def _output(self, observation: torch.Tensor) -> TensorDict:
-        """The step's TensorDict, with the observation's parts of this layout (of all parts)."""
+    def _output(self, observation: torch.Tensor, reset: torch.Tensor | None = None) -> TensorDict:
+        """The step's TensorDict, with the observation's parts of this layout (of all parts), stacked
+        with the earlier frames when ``frames`` > 1 (``reset``: the rows that start a new stack)."""
         if self._columns is not None:
             observation = observation.index_select(-1, self._columns)
+        if self._stack is not None:
+            observation = self._stack.push(observation) if reset is None else self._stack.reset(reset, observation)
         state = self.state
         out = {key: value.clone() for key, value in self.measurement.items()}
         out.update(
@@ -364,5 +389,6 @@ class WaterAirEnv(EnvBase):
             tx_position=state["tx_position"].clone(),
             rx_position=state["rx_position"].clone(),
             tilt=self.tilt,
+            base_tilt=self._base_tilt,
         )
         return TensorDict(out, batch_size=self.batch_size, device=self.device)

@@ -20,8 +20,9 @@ import torch
 
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
 from waterair.envs.rewards import Reward
-from waterair.envs.sensors import PACKET_PARTS, Sensor, intensity_feature, spot_position
+from waterair.envs.sensors import PACKET_PARTS, Sensor, back_projection, intensity_feature, spot_position
 from waterair.physics.channel import Transceiver, channel_gain, gain_upper_bound, pointing
+from waterair.physics.optics import unit_vector
 from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path
 from waterair.physics.paths.fixed import fixed_newton_terms
 
@@ -58,8 +59,10 @@ class StepConstants:
     reward: Reward
     solver: FixedNewtonOptions
     tolerance: float
-    absolute: bool
+    action_mode: str
     max_tilt: float
+    residual: float
+    residual_base: str
     slew_step: float
     dt: float
     episode_seconds: float
@@ -75,8 +78,10 @@ class StepConstants:
             reward=reward,
             solver=solver,
             tolerance=solver.tolerance(getattr(torch, config.dtype)),
-            absolute=config.action_mode == "absolute",
+            action_mode=config.action_mode,
             max_tilt=config.max_tilt,
+            residual=math.sin(math.radians(config.residual_deg)),
+            residual_base=config.residual_base,
             slew_step=math.sin(math.radians(config.max_slew_deg_s * config.dt)),
             dt=config.dt,
             episode_seconds=config.episode_seconds,
@@ -87,8 +92,11 @@ class StepConstants:
 
 def advance(c: StepConstants, state: dict, action: torch.Tensor) -> dict:
     """Gimbals, action history and clock after ``action`` ``[B, 4]`` (already clipped to [-1, 1])."""
-    if c.absolute:
+    if c.action_mode == "absolute":
         tx, rx = action[:, :2] * c.max_tilt, action[:, 2:] * c.max_tilt
+    elif c.action_mode == "residual":
+        base = base_tilts(c, state)
+        tx, rx = base[:, :2] + action[:, :2] * c.residual, base[:, 2:] + action[:, 2:] * c.residual
     else:
         tx, rx = state["tx_tilt"] + action[:, :2] * c.slew_step, state["rx_tilt"] + action[:, 2:] * c.slew_step
     return {
@@ -98,6 +106,24 @@ def advance(c: StepConstants, state: dict, action: torch.Tensor) -> dict:
         "time": state["time"] + c.dt,
         "steps": state["steps"] + 1,
     }
+
+
+def flat_tilts(point: torch.Tensor, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
+    """The tilts ``[n, 4]`` (tx_vx, tx_vy, rx_vx, rx_vy) pointing both ends at the calm-sea path point ``[n, 3]``."""
+    return torch.cat((unit_vector(point - tx)[:, :2], unit_vector(point - rx)[:, :2]), dim=-1)
+
+
+def base_tilts(c: StepConstants, state: dict) -> torch.Tensor:
+    """The residual base controller's tilts ``[B, 4]`` for the next action: flat-sea Snell, or the
+    quadrant-detector back-projection of the delivered packet (flat-sea Snell where it has no reading)."""
+    point, tx, rx = state["flat_point"], state["tx_position"], state["rx_position"]
+    if c.residual_base == "flat_snell":
+        return flat_tilts(point, tx, rx)
+    delivered = state["packets"][:, -1]  # tx (3), rx (3), intensity (1), spot (2), spot_valid (1), history
+    flat = unit_vector(point - tx), unit_vector(point - rx)
+    seen = delivered[:, 9] > 0.5
+    tx_dir, rx_dir = back_projection(delivered[:, 3:6], delivered[:, 7:9], seen, tx, rx, flat, c.optics.half_fov)
+    return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
 
 
 def limit_tilt(tilt: torch.Tensor, max_tilt: float) -> torch.Tensor:
@@ -189,8 +215,9 @@ def conclude(c: StepConstants, state: dict, moved: dict, solution: tuple, noise)
     outputs = {
         **measurement,
         "observation": observe(c, {**state, **new}),
-        "reward": c.reward(measurement["intensity"]).unsqueeze(-1),
+        "reward": c.reward(measurement["intensity"], misalignment(c, measurement)).unsqueeze(-1),
         "truncated": (new["steps"] >= c.max_steps).unsqueeze(-1),
+        "base_tilt": base_tilts(c, {**state, **new}),
     }
     return new, outputs
 
@@ -219,6 +246,12 @@ def finish(c: StepConstants, state: dict, moved: dict, solution: tuple, noise, i
     taken = taken + more
     new, outputs = conclude(c, state, moved, (point, slope, converged, taken), noise)
     return new, outputs, (point, slope, xy, converged, taken)
+
+
+def misalignment(c: StepConstants, measurement: dict) -> torch.Tensor:
+    """α_D / ω_D + α_A / ω_A ``[B]``: how far both ends point from the present path (0 on an invalid one)."""
+    angles = measurement["alpha_d"] / c.optics.divergence + measurement["alpha_a"] / c.optics.half_fov
+    return torch.where(measurement["path_valid"], angles, torch.zeros_like(angles))
 
 
 def observe(c: StepConstants, state: dict) -> torch.Tensor:

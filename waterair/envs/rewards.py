@@ -4,6 +4,11 @@
 * ``linear``: R(I) = I
 * ``log``: R(I) = log10(max(I, floor))
 
+Each may add a pointing term with a slope where no light arrives: R − pointing · m, where
+m = α_D / ω_D + α_A / ω_A is the misalignment of both ends from the present path in units of the
+beam divergence and the receiver's half field of view. Both the gain and −m peak at α_D = α_A = 0
+(the upper bound's pointing), so the term moves no optimum; it gives a lost beam a way back.
+
 log10(b I) is −∞ at I = 0, so that term uses max(I, floor). With a > 0, b > 0, c ≥ 0 and
 G_r > 0 every term is non-decreasing and the log terms strictly increasing, so R is strictly
 increasing in I above the floor (and constant-free of NaN/inf everywhere).
@@ -34,6 +39,7 @@ class Reward:
         gain: overall gain G_r, > 0.
         bias: additive bias B.
         floor: the smallest I fed to the log terms, in (0, 1).
+        pointing: weight of the misalignment penalty, ≥ 0 (0: the reward of I alone).
 
     Defaults (a = 10, b = 100, c = 0.7, floor = 1e-3, gain = 0.1, bias = 0): over the intensities
     the environment produces (I ≈ 0 misaligned to I ≈ 1-2 aligned, see docs/environment.md) the
@@ -49,6 +55,7 @@ class Reward:
     gain: float = 0.1
     bias: float = 0.0
     floor: float = 1e-3
+    pointing: float = 0.0
 
     def __post_init__(self) -> None:
         check_choice("reward.name", self.name, REWARD_NAMES)
@@ -58,9 +65,18 @@ class Reward:
         check_range("reward.gain", self.gain, 0.0, 1e6, low_open=True)
         check_range("reward.bias", self.bias, -1e6, 1e6)
         check_range("reward.floor", self.floor, 0.0, 1.0, low_open=True, high_open=True)
+        check_range("reward.pointing", self.pointing, 0.0, 1e3)
 
-    def __call__(self, intensity: torch.Tensor) -> torch.Tensor:
-        """Reward of intensity I ≥ 0 (any shape); finite for every finite I in [0, 10]."""
+    def __call__(self, intensity: torch.Tensor, misalignment: torch.Tensor | None = None) -> torch.Tensor:
+        """Reward of intensity I ≥ 0 (any shape), less ``pointing`` × ``misalignment`` (same shape)
+        when given; finite for every finite I in [0, 10]."""
+        reward = self.of_intensity(intensity)
+        if misalignment is None or self.pointing == 0.0:
+            return reward
+        return reward - self.pointing * misalignment
+
+    def of_intensity(self, intensity: torch.Tensor) -> torch.Tensor:
+        """The intensity part of the reward (the paper's, for ``le``)."""
         clamped = intensity.clamp(min=self.floor)
         if self.name == "linear":
             return intensity

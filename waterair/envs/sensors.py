@@ -17,6 +17,8 @@ import math
 
 import torch
 
+from waterair.physics.optics import unit_vector
+
 PACKET_PARTS = ("tx_pointing", "rx_pointing", "intensity", "spot", "spot_valid", "history")
 """Observation parts that travel in the measurement packet, and so arrive ``latency_steps`` late."""
 INTENSITY_EPS = 1e-6
@@ -59,6 +61,31 @@ def receiver_frame(boresight: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]
     e1 = east - (east * boresight).sum(-1, keepdim=True) * boresight
     e1 = e1 / torch.linalg.vector_norm(e1, dim=-1, keepdim=True)
     return e1, torch.linalg.cross(boresight, e1, dim=-1)
+
+
+def back_projection(
+    boresight: torch.Tensor,
+    spot: torch.Tensor,
+    seen: torch.Tensor,
+    tx: torch.Tensor,
+    rx: torch.Tensor,
+    fallback: tuple[torch.Tensor, torch.Tensor],
+    half_fov: float,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Quadrant-detector back-projection: unit transmitter (up) and receiver (down) pointing ``[n, 3]``.
+
+    The receiver looks along the measured incoming direction (the ``spot`` ``[n, 2]`` read with
+    ``boresight`` ``[n, 3]``); the transmitter points at where that ray, back-projected from R, meets
+    the mean sea level z = 0. Rows not ``seen`` ``[n]`` (no reading) take ``fallback`` (tx, rx).
+    """
+    e1, e2 = receiver_frame(boresight)
+    scale = math.tan(half_fov)
+    toward_surface = unit_vector(boresight + scale * (spot[:, :1] * e1 + spot[:, 1:] * e2))
+    down = toward_surface[:, 2] < -1e-6
+    reach = -rx[:, 2] / torch.where(down, toward_surface[:, 2], -torch.ones_like(rx[:, 2]))
+    sea_point = rx + reach.unsqueeze(-1) * toward_surface
+    use = (seen & down).unsqueeze(-1)
+    return torch.where(use, unit_vector(sea_point - tx), fallback[0]), torch.where(use, toward_surface, fallback[1])
 
 
 def packet_sizes(history_length: int) -> tuple[int, ...]:
