@@ -9,7 +9,7 @@ from conftest import ROOT
 
 from waterair.cli.preflight import jobs, one_line
 
-SHIPPED = ROOT / "waterair" / "assets" / "default_policy.pt"
+SHIPPED = ROOT / "waterair" / "assets" / "default.pt"
 
 
 def tree(root):

@@ -14,11 +14,11 @@ from omegaconf import OmegaConf
 from waterair.agents.checkpoint import CheckpointError, policy_state, save_policy
 from waterair.agents.networks import make_actor
 from waterair.evaluation.metrics import METRICS
-from waterair.evaluation.policies import SHIPPED_POLICY, latest_run, load_policy
+from waterair.evaluation.policies import SHIPPED, latest_run, load_policy, shipped_policy
 from waterair.evaluation.report import ROW_KEYS, write_outputs
-from waterair.evaluation.runner import evaluate
+from waterair.evaluation.runner import evaluate, prepare
 from waterair.training import train
-from waterair.training.export import export_policy
+from waterair.training.export import export_policy, short_check
 
 TRAIN_TINY = [
     "env.num_envs=8",
@@ -90,6 +90,20 @@ def write_policy(path: Path, observation_size: int, extras=(), with_config=True)
     return path
 
 
+def test_sensing_decides_whose_sensor_a_learned_policy_and_its_controllers_use(tiny_run):
+    trained = prepare(eval_cfg(f"run={tiny_run}"))
+    ((_, config, _),) = trained.learned
+    assert config.latency_steps == 1 and config.intensity_noise == 0.05 and trained.env.latency_steps == 0
+    sensed = [(c.latency_steps, [label for label, _ in members]) for c, members in trained.groups]
+    late = ["aoa_tracker (1-step latency, noisy, saturating)", "intensity_dither (1-step latency, noisy, saturating)"]
+    assert (1, [*late, trained.policies[0].label]) in sensed
+    scenario = prepare(eval_cfg(f"run={tiny_run}", "sensing=scenario"))
+    assert scenario.learned[0][1].latency_steps == 0
+    assert all(c.latency_steps == 0 for c, _ in scenario.groups) and len(scenario.groups) == 2
+    with pytest.raises(ValueError, match=r"^sensing = 'mine' is not allowed"):
+        prepare(eval_cfg(f"run={tiny_run}", "sensing=mine"))
+
+
 @pytest.mark.slow
 def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_run, tmp_path):
     cfg = eval_cfg(f"run={tiny_run}")
@@ -101,7 +115,10 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert data["schema_version"] == 2
     labels = [p["label"] for p in data["policies"]]
     references = ["tracking", "aoa_tracker", "intensity_dither", "flat_snell", "straight_facing", "no_alignment"]
-    assert labels[0] == "upper_bound" and labels[2:] == references
+    # the run trained with the realistic sensor (train.py's default): the classical controllers also
+    # run with its sensing, beside it, while the scenario's sensor stays ideal for the references
+    realistic = [f"{name} (1-step latency, noisy, saturating)" for name in ("aoa_tracker", "intensity_dither")]
+    assert labels[0] == "upper_bound" and labels[2:] == references + realistic
     assert data["policies"][1]["kind"] == "learned" and data["policies"][1]["frames"] == 800
     points = {"S1": 1, "S2": 2, "S3": 2, "S4": 2}
     assert {s["name"]: len(s["points"]) for s in data["scenarios"]} == points
@@ -283,23 +300,17 @@ def test_latest_run_is_the_newest_checkpoint(tmp_path):
         latest_run(tmp_path / "empty")
 
 
-def test_the_shipped_policy_is_a_trained_default_policy():
-    policy = load_policy(SHIPPED_POLICY)
-    assert policy.file.observation_size == 8 and policy.config is not None
-    assert policy.label == "ddpg (shipped)"
-    # trained with the default config: the same keys and values as conf/ composes today
-    default = compose_config("config")
-    # It was trained before frames_per_batch went from 800 to 400 (so it collected 250,400 frames);
-    # that only changes how often the collector hands over frames, not the updates per frame.
-    # compile_kernel only changes speed (compiled and eager steps agree, tests/test_compiled_step.py).
-    allowed = {"device", "seed", "frames_per_batch", "compile_kernel"}
-    for group in ("env", "reward", "agent", "actor", "critic", "noise", "collector", "buffer"):
-        shipped = OmegaConf.to_container(policy.config[group], resolve=True)
-        current = OmegaConf.to_container(default[group], resolve=True)
-        differing = {k for k in current if k in shipped and shipped[k] != current[k]} - allowed
-        assert not differing, (group, differing)
-    assert policy.config.total_frames == default.total_frames
-    per_batch = policy.config.collector.frames_per_batch
-    assert policy.file.frames == -(-default.total_frames // per_batch) * per_batch
-    metrics = json.loads(SHIPPED_POLICY.with_name("default_policy_metrics.json").read_text())
+@pytest.mark.parametrize("name", list(SHIPPED))
+def test_each_shipped_policy_loads_matches_its_metrics_and_has_the_documented_config(name):
+    path = shipped_policy(name)
+    assert "actor" in torch.load(path, weights_only=True)
+    policy = load_policy(path)
+    assert policy.label == f"ddpg {name}"
+    # trained with the documented defaults (and its preset): the same keys and values as conf/ composes today
+    documented = OmegaConf.to_container(compose_config("config", list(SHIPPED[name])), resolve=True)
+    assert OmegaConf.to_container(policy.config, resolve=True) == documented
+    assert policy.file.frames == documented["total_frames"]
+    metrics = json.loads(path.with_name(f"{name}_metrics.json").read_text())
+    assert metrics["frames"] == policy.file.frames
+    assert short_check(path) == pytest.approx(metrics["check"], rel=1e-4)
     assert metrics["agent/ratio_to_ub"] > metrics["straight_facing/ratio_to_ub"]

@@ -25,6 +25,11 @@ STYLES = {
     "no_alignment": ("tab:gray", "x", (0, (1, 1)), 1.2),
 }
 """Colour, marker, line style and width of the upper bound and each baseline: every policy differs in all four."""
+SENSING_STYLES = {
+    "aoa_tracker": ("darkmagenta", "<", (0, (2, 2)), 1.6),
+    "intensity_dither": ("saddlebrown", ">", (0, (4, 2, 1, 2)), 1.4),
+}
+"""The classical controllers run again with a learned policy's own sensing (labelled with it)."""
 LEARNED_STYLES = (
     ("tab:blue", "D", "-", 2.2),
     ("tab:red", "P", "-", 2.2),
@@ -148,7 +153,9 @@ def _style(result, policy: dict) -> tuple:
     if policy["kind"] == "bound":
         return STYLES["bound"]
     if policy["kind"] == "baseline":
-        return STYLES.get(policy["label"], ("tab:olive", "1", "-", 1.2))
+        name = policy.get("baseline", policy["label"])
+        styles = STYLES if policy["label"] == name else SENSING_STYLES
+        return styles.get(name, ("tab:olive", "1", "-", 1.2))
     learned = [p["label"] for p in result.policies if p["kind"] == "learned"]
     return LEARNED_STYLES[learned.index(policy["label"]) % len(LEARNED_STYLES)]
 

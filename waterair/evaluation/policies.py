@@ -14,19 +14,35 @@ from pathlib import Path
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from waterair.agents.checkpoint import CheckpointError, PolicyFile, read_policy
+from waterair.envs.config import SENSOR_KEYS
 
-SHIPPED_POLICY = Path(__file__).resolve().parents[1] / "assets" / "default_policy.pt"
-"""The default policy that ``python evaluate.py`` evaluates when given no run or checkpoint."""
+ASSETS = Path(__file__).resolve().parents[1] / "assets"
 INTERFACE_KEYS = (
     "action_mode",
     "max_tilt_deg",
     "max_slew_deg_s",
+    "residual_deg",
+    "residual_base",
     "observation_extras",
     "history_length",
+    "frames",
     "max_steps",
     "dtype",
 )
 """Environment keys a learned policy keeps from its own training config; the scenario sets the rest."""
+SHIPPED = {
+    "default": (),
+    "intensity": ("env/observation=intensity",),
+    "paper": ("+experiment=paper",),
+}
+"""The shipped policies in :data:`ASSETS` (``NAME.pt``, ``NAME.yaml``, ``NAME_metrics.json``), which
+``python evaluate.py`` evaluates when given no run or checkpoint, and the ``train.py`` overrides
+each was trained with (on defaults otherwise; docs/results.md)."""
+
+
+def shipped_policy(name: str) -> Path:
+    """The file of the shipped policy ``name`` (one of :data:`SHIPPED`)."""
+    return ASSETS / f"{name}.pt"
 
 
 @dataclass
@@ -41,10 +57,12 @@ class LearnedPolicy:
     def path(self) -> Path:
         return self.file.path
 
-    def interface(self, scenario_env: Mapping) -> dict:
-        """The environment keys this policy was trained with (the scenario's where no config exists)."""
+    def interface(self, scenario_env: Mapping, sensing: bool = True) -> dict:
+        """The environment keys this policy was trained with (the scenario's where no config exists),
+        with its training sensor (:data:`SENSOR_KEYS`) when ``sensing``."""
         source = OmegaConf.to_container(self.config.env, resolve=True) if self.config else scenario_env
-        return {key: source[key] for key in INTERFACE_KEYS if key in source}
+        keys = INTERFACE_KEYS + (SENSOR_KEYS if sensing else ())
+        return {key: source[key] for key in keys if key in source}
 
     def actor(self, actor_cfg: DictConfig, observation_size: int):
         """The actor network (CPU, eval mode): its training config's shape, else ``actor_cfg``'s."""
@@ -73,7 +91,7 @@ def find_config(checkpoint: Path) -> Path | None:
 
 
 def checkpoint_sources(cfg: DictConfig, root: Path = Path(".")) -> list[Path]:
-    """Checkpoint files named by ``run`` (run directories, or ``latest``) and ``checkpoint``; else the shipped one."""
+    """Checkpoint files named by ``run`` (run directories, or ``latest``) and ``checkpoint``; else the shipped ones."""
     sources = []
     for run in as_list(cfg.run):
         run_dir = latest_run(root) if run == "latest" else Path(run)
@@ -81,7 +99,7 @@ def checkpoint_sources(cfg: DictConfig, root: Path = Path(".")) -> list[Path]:
             raise CheckpointError(f"run = {run!r} is not a run directory")
         sources.append(run_dir / "checkpoints" / "last.pt")
     sources += [Path(p) for p in as_list(cfg.checkpoint)]
-    return sources or [SHIPPED_POLICY]
+    return sources or [shipped_policy(name) for name in SHIPPED]
 
 
 def latest_run(root: Path = Path(".")) -> Path:
@@ -103,7 +121,7 @@ def as_list(value) -> list[str]:
 
 def _default_label(path: Path, config: DictConfig | None) -> str:
     agent = config.agent.name if config is not None and "agent" in config else "policy"
-    if path.resolve() == SHIPPED_POLICY:
-        return f"{agent} (shipped)"
+    if path.resolve().parent == ASSETS and path.stem in SHIPPED:
+        return f"{agent} {path.stem}"
     run_dir = path.parent.parent if path.parent.name == "checkpoints" else path.parent
     return f"{agent} {run_dir.name}"

@@ -22,7 +22,7 @@ from tensordict.nn import TensorDictModuleBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from waterair.core.devices import resolve_device
-from waterair.core.validation import check_int, check_range
+from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.baselines import BASELINES
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import CONTROLLERS
@@ -35,6 +35,8 @@ UPPER_BOUND = "upper_bound"
 REFERENCES = {**BASELINES, **CONTROLLERS}
 """Everything ``baselines`` may name: the model-based baselines and the classical controllers."""
 TRACE_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid")
+SENSING = ("trained", "scenario")
+"""``sensing``: each learned policy with the sensor it was trained with, or every policy with the scenario's."""
 
 
 @dataclass(frozen=True)
@@ -105,6 +107,7 @@ class EvaluationPlan:
     policies: list[LearnedPolicy]
     learned: list[tuple]  # (policy, its env config, its actor on the device)
     batch_policies: bool
+    groups: list[tuple] = field(default_factory=list)  # (env config, [(label, policy or baseline name)])
 
 
 def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) -> EvaluationPlan:
@@ -130,9 +133,11 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
             raise ValueError(f"labels has {len(labels)} entries for {len(sources)} checkpoints")
         policies = [load_policy(p, labels[i] if labels else None) for i, p in enumerate(sources)]
     _unique_labels(policies)
+    sensing = cfg.get("sensing", "trained")
+    check_choice("sensing", sensing, SENSING)
     learned = []
     for policy in policies:
-        env_config = base.replace(**policy.interface(scenario_env))
+        env_config = base.replace(**policy.interface(scenario_env, sensing=sensing == "trained"))
         learned.append((policy, env_config, policy.actor(cfg.actor, env_config.observation_size).to(device)))
     for scenario in scenarios:
         for policy, env_config, _ in [(None, base, None), *learned]:
@@ -142,9 +147,9 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
                     f"scenarios.{scenario.name}.steps = {scenario.steps} is out of range; allowed [1, "
                     f"{env_config.max_steps}] ({owner} env.max_steps: a longer rollout would restart the seas)"
                 )
-    return EvaluationPlan(
-        scenarios, bootstrap, base, baselines, list(policies), learned, bool(cfg.get("batch_policies", True))
-    )
+    together = bool(cfg.get("batch_policies", True))
+    groups = _policy_groups(base, baselines, learned, together)
+    return EvaluationPlan(scenarios, bootstrap, base, baselines, list(policies), learned, together, groups)
 
 
 def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, progress=print) -> Evaluation:
@@ -159,12 +164,17 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
         scenarios=plan.scenarios,
         policies=[{"label": UPPER_BOUND, "kind": "bound"}]
         + [_describe(policy, plan.env) for policy in plan.policies]
-        + [{"label": name, "kind": "baseline"} for name in plan.baselines],
+        + [
+            {"label": label, "kind": "baseline", "baseline": name}
+            for _, members in plan.groups
+            for label, name in members
+            if isinstance(name, str)
+        ],
         env=plan.env,
     )
     # Scenarios with the same realisations, steps and seed run as one batch over the union of their
     # points; within it, every group of policies sharing an interface runs as replicas of one env.
-    groups = _policy_groups(plan.env, plan.baselines, plan.learned, together=plan.batch_policies)
+    groups = plan.groups
     for batch in _batches(plan.scenarios):
         points = list(dict.fromkeys(p for s in batch for p in s.points))
         first = batch[0]
@@ -195,22 +205,39 @@ def _policy_groups(base: EnvConfig, baselines: list[str], learned, together: boo
     """(env config, [(label, policy or baseline name)]) per distinct interface.
 
     Baselines and controllers use the scenario's environment with every observation part they read
-    (``required_extras``). ``together=False`` gives every policy its own group (own rollout):
-    slower, less memory.
+    (``required_extras``). Where a learned policy senses differently from the scenario (its own
+    training sensor), the classical controllers also run with that sensing, labelled with it, so
+    that each policy has its classical competitor with the same sensing. ``together=False`` gives
+    every policy its own group (own rollout): slower, less memory.
     """
     required = [part for name in baselines for part in REFERENCES[name].required_extras]
     reference = base.replace(observation_extras=tuple(dict.fromkeys((*base.observation_extras, *required))))
+    references = [(reference, [(name, name) for name in baselines])] if baselines else []
+    controllers = [name for name in baselines if name in CONTROLLERS]
+    for sensing in dict.fromkeys(tuple(c.sensing.items()) for _, c, _ in learned):
+        if controllers and dict(sensing) != reference.sensing:
+            label = sensing_label(dict(sensing))
+            members = [(f"{name} ({label})", name) for name in controllers]
+            references.append((reference.replace(**dict(sensing)), members))
     if not together:
-        return [(reference, [(name, name)]) for name in baselines] + [(c, [(p.label, a)]) for p, c, a in learned]
-    groups: list[tuple[EnvConfig, list]] = []
-    if baselines:
-        groups.append((reference, [(name, name) for name in baselines]))
+        single = [(config, [member]) for config, members in references for member in members]
+        return single + [(c, [(p.label, a)]) for p, c, a in learned]
+    groups: list[tuple[EnvConfig, list]] = list(references)
     for policy, env_config, actor in learned:
         match = next((members for config, members in groups if config == env_config), None)
         if match is None:
             groups.append((env_config, match := []))
         match.append((policy.label, actor))
     return groups
+
+
+def sensing_label(sensing: Mapping) -> str:
+    """A short name of a sensor setting (``EnvConfig.sensing``), e.g. ``1-step latency, noisy``."""
+    parts = [f"{sensing['latency_steps']}-step latency"] if sensing["latency_steps"] else []
+    noisy = sensing["intensity_noise"] or sensing["intensity_noise_floor"] or sensing["spot_noise_rad"]
+    parts += ["noisy"] if noisy else []
+    parts += ["saturating"] if sensing["intensity_saturation"] is not None else []
+    return ", ".join(parts) or "ideal"
 
 
 class PolicySplit(TensorDictModuleBase):
@@ -253,6 +280,7 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
             wind_range=None,
             offset_range=None,
             offset_azimuth_range=None,
+            wind_direction_range=None,
         )
     )
     policies = [REFERENCES[policy](env) if isinstance(policy, str) else policy for _, policy in members]
