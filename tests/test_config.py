@@ -9,7 +9,7 @@ from waterair.training.config import validate
 GROUPS = {
     group.name: sorted(p.stem for p in group.glob("*.yaml"))
     for group in sorted((ROOT / "conf").iterdir())
-    if group.is_dir() and group.name not in ("env", "hydra")
+    if group.is_dir() and group.name not in ("env", "hydra", "experiment")
 }
 OPTIONS = [(group, option) for group, options in GROUPS.items() for option in options]
 OPTIONS += [
@@ -20,6 +20,8 @@ OPTIONS += [
 LAUNCHERS = ["basic", "joblib", "submitit_local", "submitit_slurm"]
 SELECTED = {"actor", "critic", "agent", "buffer", "noise", "reward", "logger"}
 """Groups whose options say which one they are, always under the key ``name``."""
+NAMED_AS = {("reward", "pointing"): "le"}
+"""Options that are another option's function with other values (the LE reward with its pointing term)."""
 
 
 def test_every_group_is_covered():
@@ -32,7 +34,16 @@ def test_every_option_composes_and_validates(group, option):
     cfg = compose_config("config", [f"{group}={option}"])
     validate(cfg)
     if group in SELECTED:
-        assert cfg[group].name == option
+        assert cfg[group].name == NAMED_AS.get((group, option), option)
+
+
+def test_the_paper_preset_is_the_papers_table_one_override_away():
+    cfg = compose_config("config", ["+experiment=paper"])
+    validate(cfg)
+    assert (cfg.critic.lr, cfg.actor.lr, cfg.agent.gamma, cfg.buffer.batch_size) == (1e-4, 1e-3, 0.2, 64)
+    assert (cfg.noise.sigma_init, cfg.noise.sigma_end, cfg.total_frames) == (0.1, 0.02, 250_000)
+    assert cfg.env.observation_extras == [] and cfg.env.latency_steps == 0 and cfg.env.action_mode == "absolute"
+    assert cfg.reward.pointing == 0.0 and cfg.env.offset_range is None and cfg.agent.name == "ddpg"
 
 
 @pytest.mark.parametrize("launcher", LAUNCHERS)
@@ -59,9 +70,6 @@ def test_a_loss_target_that_does_not_match_the_agent_is_a_one_line_error():
         validate(cfg)
 
 
-def test_the_shipped_policy_config_is_a_valid_config():
-    config = OmegaConf.load(ROOT / "waterair" / "assets" / "default_policy.yaml")
-    # Trained before total_frames had to be a multiple of frames_per_batch (800 then): it collected
-    # 250,400 frames, the number its policy file records.
-    config.total_frames = 250_400
-    validate(config)
+@pytest.mark.parametrize("name", ["default", "intensity", "paper"])
+def test_each_shipped_policy_config_is_a_valid_config(name):
+    validate(OmegaConf.load(ROOT / "waterair" / "assets" / f"{name}.yaml"))

@@ -109,7 +109,8 @@ def test_every_observation_preset_passes_the_spec_check(preset, num_envs):
     env = WaterAirEnv(config)
     check_env_specs(env)
     sizes = {"paper": 8, "intensity": 8 + 4 + 16, "quadrant": 8 + 2 + 1 + 2}
-    assert env.observation_spec["observation"].shape == (num_envs, sizes[preset])
+    assert config.frame_size == sizes[preset] and config.frames == 2  # train.py stacks two frames
+    assert env.observation_spec["observation"].shape == (num_envs, 2 * sizes[preset])
 
 
 def test_geometry_reads_the_drone_position_over_the_vertical_distance():

@@ -51,7 +51,7 @@ def make_env(cfg: DictConfig) -> TransformedEnv:
 def make_actor(cfg: DictConfig, env, device) -> TensorDictModule:
     """Deterministic actor of the ``actor`` group: MLP(observation) → tanh → action in [-1, 1]."""
     sizes = env.observation_spec["observation"].shape[-1], env.action_spec.shape[-1]
-    return build_actor(*sizes, cfg.actor.hidden, cfg.actor.activation).to(device)
+    return build_actor(*sizes, cfg.actor.hidden, cfg.actor.activation, cfg.actor.zero_output).to(device)
 
 
 def make_critic(cfg: DictConfig, env, device) -> ValueOperator:

@@ -46,6 +46,8 @@ def validate(cfg: DictConfig) -> None:
             raise ValueError(f"{net}.hidden = {cfg[net].hidden!r} must be a list of layer widths, e.g. [256, 256]")
         for width in cfg[net].hidden:
             check_int(f"{net}.hidden", width, 1, 1 << 16)
+    if not isinstance(cfg.actor.zero_output, bool):
+        raise ValueError(f"actor.zero_output = {cfg.actor.zero_output!r} must be true or false")
     check_choice("buffer.name", cfg.buffer.name, BUFFERS)
     check_int("buffer.batch_size", cfg.buffer.batch_size, 1, 1 << 20)
     check_int("buffer.capacity", cfg.buffer.capacity, cfg.buffer.batch_size)

@@ -37,7 +37,8 @@ from waterair.training.config import validate
 from waterair.training.run_log import RunLog
 
 FINAL_POLICIES = {"straight_facing": "straight_facing", "flat_snell": "flat_snell"}
-"""Baselines the closing evaluation scores the trained agent against (label → baseline name)."""
+"""Baselines the closing evaluation scores the trained agent against (label → baseline name), with
+the classical controller of the agent's sensing (:func:`classical_controller`)."""
 
 
 def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = print) -> dict[str, float]:
@@ -77,6 +78,7 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
         log.text("config", "```\n" + OmegaConf.to_yaml(cfg, resolve=True) + "\n```")
 
     steps_per_batch = cfg.collector.frames_per_batch // cfg.env.num_envs
+    started = time.perf_counter()
     bar = tqdm(total=cfg.total_frames, initial=counters.frames, disable=not cfg.logger.progress_bar, unit="frame")
     last_checkpoint, episode_reward = counters.frames, "–"  # the last finished episode's, once there is one
     clock = time.perf_counter()
@@ -107,10 +109,15 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
     collector.shutdown()
 
     # Evaluate the greedy policy against the baselines on the training point and write the final metrics
-    metrics = {"frames": counters.frames, "updates": counters.updates, "episodes": counters.episodes}
+    metrics = {
+        "frames": counters.frames,
+        "updates": counters.updates,
+        "episodes": counters.episodes,
+        "train_seconds": round(time.perf_counter() - started, 1),  # this process's loop (a resumed run: since resuming)
+    }
     clock = time.perf_counter()
     seas = f"{cfg.eval.realisations} seas × {cfg.eval.steps} steps"
-    progress(f"Evaluating the greedy policy, flat-sea Snell and straight facing on {seas} …")
+    progress(f"Evaluating the greedy policy, the baselines and the classical controller on {seas} …")
     metrics.update(final_evaluation(cfg, actor))
     progress(f"Evaluated in {time.perf_counter() - clock:.0f} s")
     # The evaluation goes to TensorBoard and final_metrics.json; the CSV keeps one row per batch.
@@ -147,14 +154,25 @@ def final_evaluation(cfg: DictConfig, actor) -> dict[str, float]:
     """The greedy actor, straight-facing and flat-Snell on the same seas at the training wind and offset.
 
     Evaluation's own runner and metrics (``eval`` group: realisations, steps, seed); keys are
-    ``<policy>/<metric>`` with the policy ``agent``, ``straight_facing``, ``flat_snell`` or
-    ``upper_bound``.
+    ``<policy>/<metric>`` with the policy ``agent``, ``straight_facing``, ``flat_snell``, the
+    classical controller (``aoa_tracker`` or ``intensity_dither``) or ``upper_bound``.
     """
     point = ((float(cfg.env.wind), float(cfg.env.offset_ratio), float(cfg.env.offset_azimuth_deg)),)
     scenario = Scenario("train", "training point", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
-    results = compare_policies(env_config(cfg), {"agent": actor, **FINAL_POLICIES}, scenario)
+    config = env_config(cfg)
+    references = {**FINAL_POLICIES, (controller := classical_controller(config)): controller}
+    # The references point in absolute tilts: a residual action's range need not reach their pointing.
+    # Same seed, same seas: the two rollouts share the upper bound.
+    results = compare_policies(config.replace(action_mode="absolute"), references, scenario)
+    results.update(compare_policies(config, {"agent": actor}, scenario))
     keep = (*METRICS, "mean_gain_lo", "mean_gain_hi")
     return {f"{label}/{key}": values[key] for label, values in results.items() for key in keep}
+
+
+def classical_controller(config) -> str:
+    """The classical controller with the agent's sensing: the quadrant back-projection where the
+    observation has the spot, else intensity-only dithering."""
+    return "aoa_tracker" if {"spot", "spot_valid"} <= set(config.observation_extras) else "intensity_dither"
 
 
 def _noise_scale(noise) -> float:

@@ -1,31 +1,106 @@
-"""The Hydra callback that summarises a sweep: ``summary.csv`` at its root, one row per job."""
+"""The Hydra callback that summarises a sweep, and the seed study's table and learning curves.
+
+At the end of a multirun :class:`SweepSummary` writes, at the sweep root, ``summary.csv`` (one row
+per job: its overrides and final metrics), ``summary.md`` (the per-job table of the greedy ratio to
+the upper bound beside flat-sea Snell's, and the spread) and ``learning_curves.png`` (the training
+links' ratio to the upper bound against frames: the mean over jobs and their range).
+"""
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
+import numpy as np
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from waterair.core.files import atomic_write_csv
+from waterair.core.files import atomic_write_csv, atomic_write_text
+
+CURVE_KEY = "train/gain_ratio_ub"
+"""The column of each job's ``metrics.csv`` the learning curves plot."""
 
 
 class SweepSummary(Callback):
-    """At the end of a multirun, write ``summary.csv`` (job, overrides, final metrics) at the sweep root."""
+    """At the end of a multirun, write the summary files described in the module docstring."""
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
-        root = Path(config.hydra.sweep.dir)
-        rows = []
-        for metrics_path in sorted(root.glob("*/final_metrics.json"), key=lambda p: int(p.parent.name)):
-            overrides_path = metrics_path.parent / ".hydra" / "overrides.yaml"
-            overrides = OmegaConf.load(overrides_path) if overrides_path.exists() else []
-            rows.append(
-                {
-                    "job": metrics_path.parent.name,
-                    "overrides": " ".join(overrides),
-                    **json.loads(metrics_path.read_text()),
-                }
-            )
-        if rows:
-            atomic_write_csv(root / "summary.csv", list(dict.fromkeys(key for row in rows for key in row)), rows)
+        summarise(Path(config.hydra.sweep.dir))
+
+
+def summarise(root: Path) -> list[dict]:
+    """Write ``summary.csv``, ``summary.md`` and ``learning_curves.png`` for the jobs under ``root``; the rows."""
+    rows = []
+    for metrics_path in sorted(root.glob("*/final_metrics.json"), key=lambda p: int(p.parent.name)):
+        overrides_path = metrics_path.parent / ".hydra" / "overrides.yaml"
+        overrides = OmegaConf.load(overrides_path) if overrides_path.exists() else []
+        rows.append(
+            {"job": metrics_path.parent.name, "overrides": " ".join(overrides), **json.loads(metrics_path.read_text())}
+        )
+    if not rows:
+        return rows
+    atomic_write_csv(root / "summary.csv", list(dict.fromkeys(key for row in rows for key in row)), rows)
+    atomic_write_text(root / "summary.md", summary_table(rows))
+    curves = {row["job"]: read_curve(root / row["job"] / "metrics.csv") for row in rows}
+    learning_curves({job: curve for job, curve in curves.items() if curve[0].size}, root / "learning_curves.png")
+    return rows
+
+
+def summary_table(rows: list[dict]) -> str:
+    """A Markdown table: per job, the greedy agent's and flat-sea Snell's ratio to UB, and the spread."""
+    lines = [
+        "| job | overrides | frames | training (s) | agent ratio to UB | flat-Snell ratio to UB |",
+        "|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        seconds = row.get("train_seconds")
+        lines.append(
+            f"| {row['job']} | `{row['overrides']}` | {row['frames']} | {'–' if seconds is None else f'{seconds:.0f}'} "
+            f"| {row['agent/ratio_to_ub']:.3f} | {row['flat_snell/ratio_to_ub']:.3f} |"
+        )
+    ratios = [row["agent/ratio_to_ub"] for row in rows]
+    lines += [
+        "",
+        f"Agent ratio to UB over {len(rows)} jobs: mean {np.mean(ratios):.3f}, best {max(ratios):.3f}, "
+        f"worst {min(ratios):.3f} (best − worst {max(ratios) - min(ratios):.3f}).",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def read_curve(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(frames, :data:`CURVE_KEY`) of one job's ``metrics.csv`` (empty arrays if it has none)."""
+    if not path.is_file():
+        return np.array([]), np.array([])
+    with path.open() as file:
+        pairs = [(float(r["frames"]), float(r[CURVE_KEY])) for r in csv.DictReader(file) if r.get(CURVE_KEY)]
+    return (np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])) if pairs else (np.array([]), np.array([]))
+
+
+def learning_curves(curves: dict[str, tuple[np.ndarray, np.ndarray]], path: Path, window: int = 5) -> Path | None:
+    """Mean and range over jobs of the ratio to UB against frames (a ``window``-batch moving average)."""
+    if not curves:
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    length = min(frames.size for frames, _ in curves.values())
+    frames = next(iter(curves.values()))[0][:length]
+    kernel = np.ones(window) / window
+    smooth = np.stack(
+        [np.convolve(np.pad(v[:length], (window - 1, 0), mode="edge"), kernel, "valid") for _, v in curves.values()]
+    )
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.fill_between(frames, smooth.min(0), smooth.max(0), color="tab:blue", alpha=0.25, label="range over jobs")
+    ax.plot(frames, smooth.mean(0), color="tab:blue", linewidth=2, label=f"mean over {len(curves)} jobs")
+    ax.set_xlabel("frames (environment steps over all links)")
+    ax.set_ylabel("mean G / mean G_UB (training links, with exploration)")
+    ax.set_ylim(0, 1)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
