@@ -11,6 +11,8 @@ meaningful. Timings are wall-clock medians after a warm-up.
   flat-sea Snell baseline (:mod:`.controllers`).
 * ``training``: a DDPG update against bare PyTorch, train.py's frames per second against
   Stable-Baselines3 DDPG on our Gymnasium view (:mod:`.training`).
+* ``quality``: wall time to a greedy 0.95 of the upper bound at the S1 point, ours against
+  Stable-Baselines3 DDPG, measured in one run (:mod:`.quality`).
 * ``summary``: the speed targets as ratios, from the JSON files of the suites above (:mod:`.summary`).
 * ``evaluate``: the default evaluation (shipped policy, every baseline, S1-S3), all policies in
   one batch against one rollout per policy (:mod:`.evaluate`).
@@ -30,6 +32,7 @@ from waterair.bench.controllers import bench_controllers, controllers_table
 from waterair.bench.env import ENV_HEADER, bench_env
 from waterair.bench.evaluate import bench_evaluate, evaluate_table
 from waterair.bench.physics import bench_physics, physics_table
+from waterair.bench.quality import bench_quality, quality_table
 from waterair.bench.summary import main as summary
 from waterair.bench.training import bench_training, training_table
 from waterair.core.devices import resolve_device
@@ -61,6 +64,13 @@ def main(argv: list[str] | None = None) -> int:
     training.add_argument("--updates", type=int, default=300, help="timed updates (median reported)")
     training.add_argument("--frames", type=int, default=40_000, help="frames of each timed train.py run")
     training.add_argument("--sb3-frames", type=int, default=4_000, help="timed Stable-Baselines3 frames")
+    quality = sub.add_parser("quality", help="wall time to a greedy 0.95 of UB: ours vs Stable-Baselines3 DDPG")
+    quality.add_argument("--budgets", type=int, nargs="+", default=[1600, 8000, 40000], help="our runs' frames")
+    quality.add_argument(
+        "--flat-budgets", type=int, nargs="+", default=[40000, 160000], help="frames, flat-Snell base runs"
+    )
+    quality.add_argument("--sb3-frames", type=int, default=40_000, help="Stable-Baselines3 DDPG frames")
+    quality.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
     totals = sub.add_parser("summary", help="print the speed targets as ratios from the suites' JSON files")
     totals.add_argument("folder", type=Path, nargs="?", default=Path("outputs/bench"))
     controllers = sub.add_parser("controllers", help="step time the classical controllers and sensors add")
@@ -87,6 +97,10 @@ def main(argv: list[str] | None = None) -> int:
         record = {"machine": machine(torch.device("cpu"), torch.float32)}
         record.update(bench_training(args.updates, args.frames, args.sb3_frames))
         print(training_table(record))
+    elif args.suite == "quality":
+        record = {"machine": machine(torch.device("cpu"), torch.float32)}
+        record.update(bench_quality(args.budgets, args.flat_budgets, args.sb3_frames))
+        print(quality_table(record))
     elif args.suite == "evaluate":
         record = {"machine": machine(device, torch.float32), **bench_evaluate(args.device, args.compile)}
         print(evaluate_table(record))

@@ -1,0 +1,149 @@
+"""Time to quality: ``python -m waterair.bench quality`` (see :mod:`waterair.bench`).
+
+The wall time each pipeline needs to reach a greedy ratio to the upper bound of ``target`` (0.95)
+on the S1 point (12 m/s, 10 % offset) with the quadrant observation and the ideal sensor, both
+measured in this one process, one after the other:
+
+* **ours**: ``train()`` with the defaults at that one point, for growing budgets (``budgets``
+  frames, each a fresh run from scratch; the first that reaches the target counts). Its time is the
+  whole run (environment construction, compiles and training) without the closing evaluation;
+* **ours, flat-Snell base**: the same with residual actions on flat-sea Snell instead of the
+  quadrant back-projection, so that the agent must learn the tracking itself;
+* **sb3**: Stable-Baselines3 DDPG on our Gymnasium view with the same observation, sensor,
+  residual actions, networks, learning rates, batch, discount, noise and updates per frame, for
+  ``sb3_frames`` frames (its wall time includes model construction).
+
+Every greedy policy is scored with evaluation's own runner on the same 32 seas × 500 steps
+(evaluation seed 12345, never a training seed). Needs ``stable_baselines3`` for the last row.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import torch
+from tensordict.nn import TensorDictModuleBase
+
+from waterair.bench.training import compose_training
+from waterair.evaluation.runner import compare_policies
+from waterair.evaluation.scenarios import Scenario
+from waterair.training.builders import env_config
+
+POINT = [
+    "env/sensor=ideal",
+    "env.wind_range=null",
+    "env.offset_range=null",
+    "env.offset_azimuth_range=null",
+    "env.wind_direction_range=null",
+]
+"""The S1 point (12 m/s, 10 % offset, drone at azimuth 0, wind from 0) with the ideal sensor."""
+SCENARIO = Scenario("S1", "time to quality", None, ((12.0, 0.1, 0.0),), realisations=32, steps=500, seed=12345)
+
+
+def score(cfg, policy) -> float:
+    """The greedy ``policy``'s ratio to the upper bound on :data:`SCENARIO`."""
+    return compare_policies(env_config(cfg), {"policy": policy}, SCENARIO)["policy"]["ratio_to_ub"]
+
+
+def ours(budgets: list[int], target: float, overrides: list[str]) -> dict:
+    """Fresh ``train()`` runs of growing budgets until one reaches ``target``: each (frames, seconds, ratio).
+
+    A run's seconds run from the call until its loop ends (the closing evaluation, announced by the
+    loop's first progress line, is not counted).
+    """
+    from waterair.evaluation.policies import load_policy
+    from waterair.training.loop import train
+
+    runs = []
+    for frames in budgets:
+        cfg = compose_training(
+            [*POINT, *overrides, f"total_frames={frames}", "eval.realisations=1", "eval.steps=1"]
+            + ["logger.progress_bar=false", f"checkpoint.every_frames={frames}"]
+        )
+        loop_end = []
+        with tempfile.TemporaryDirectory() as run_dir:
+            start = time.perf_counter()
+            train(cfg, Path(run_dir), progress=lambda line, ends=loop_end: ends.append(time.perf_counter()))
+            policy = load_policy(Path(run_dir) / "checkpoints" / "last.pt")
+            actor = policy.actor(cfg.actor, env_config(cfg).observation_size)
+        runs.append({"frames": frames, "seconds": loop_end[0] - start, "ratio_to_ub": score(cfg, actor)})
+        if runs[-1]["ratio_to_ub"] >= target:
+            break
+    reached = [run for run in runs if run["ratio_to_ub"] >= target]
+    return {"overrides": overrides, "runs": runs, "seconds_to_target": reached[0]["seconds"] if reached else None}
+
+
+class SB3Actor(TensorDictModuleBase):
+    """A Stable-Baselines3 deterministic actor as a TensorDict policy (``observation`` → ``action``)."""
+
+    in_keys = ["observation"]
+    out_keys = ["action"]
+
+    def __init__(self, model):
+        super().__init__()
+        self.model = model
+
+    def forward(self, tensordict):
+        with torch.no_grad():
+            action = self.model.actor(tensordict.get("observation").float())
+        return tensordict.set("action", action.clamp(-1.0, 1.0))
+
+
+def sb3(frames: int) -> dict | None:
+    """Stable-Baselines3 DDPG for ``frames`` frames on the Gymnasium view of the same link: seconds and ratio."""
+    try:
+        from stable_baselines3 import DDPG
+        from stable_baselines3.common.noise import NormalActionNoise
+    except ImportError:
+        return None
+    import numpy as np
+
+    from waterair.envs.gym import WaterAirGymEnv
+
+    cfg = compose_training([*POINT, "env.compile_kernel=false"])
+    start = time.perf_counter()
+    env = WaterAirGymEnv(env_config(cfg))
+    model = DDPG(
+        "MlpPolicy",
+        env,
+        learning_rate=cfg.critic.lr,
+        buffer_size=cfg.buffer.capacity,
+        learning_starts=cfg.buffer.batch_size,
+        batch_size=cfg.buffer.batch_size,
+        tau=cfg.agent.tau,
+        gamma=cfg.agent.gamma,
+        train_freq=(round(1 / cfg.collector.updates_per_frame), "step"),
+        gradient_steps=1,
+        action_noise=NormalActionNoise(np.zeros(4), cfg.noise.sigma_init * np.ones(4)),
+        policy_kwargs={"net_arch": list(cfg.actor.hidden)},
+        device="cpu",
+        seed=0,
+    )
+    model.learn(frames)
+    seconds = time.perf_counter() - start
+    return {"frames": frames, "seconds": seconds, "ratio_to_ub": score(cfg, SB3Actor(model))}
+
+
+def bench_quality(budgets: list[int], flat_budgets: list[int], sb3_frames: int, target: float = 0.95) -> dict:
+    record = {"benchmark": "quality", "target": target, "scenario": "S1 point, 32 seas x 500 steps, seed 12345"}
+    record["ours"] = ours(budgets, target, [])
+    record["ours_flat_base"] = ours(flat_budgets, target, ["env.residual_base=flat_snell", "env.residual_deg=15"])
+    record["sb3"] = sb3(sb3_frames)
+    if record["sb3"] is not None and record["ours"]["seconds_to_target"] is not None:
+        record["sb3_over_ours"] = record["sb3"]["seconds"] / record["ours"]["seconds_to_target"]
+    return record
+
+
+def quality_table(record: dict) -> str:
+    lines = ["| pipeline | frames | seconds | greedy ratio to UB |", "|---|---|---|---|"]
+    for name in ("ours", "ours_flat_base"):
+        for run in record[name]["runs"]:
+            lines.append(f"| {name} | {run['frames']:,} | {run['seconds']:.0f} | {run['ratio_to_ub']:.3f} |")
+    if record["sb3"] is not None:
+        sb = record["sb3"]
+        lines.append(f"| sb3 DDPG | {sb['frames']:,} | {sb['seconds']:.0f} | {sb['ratio_to_ub']:.3f} |")
+    if "sb3_over_ours" in record:
+        lines.append(f"| SB3 seconds / ours to {record['target']} | | {record['sb3_over_ours']:.1f} | |")
+    return "\n".join(lines)
