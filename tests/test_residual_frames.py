@@ -89,6 +89,19 @@ def test_stacked_frames_hold_the_earlier_observations_newest_first():
             torch.testing.assert_close(stack[t, :, k * size : (k + 1) * size], flat[max(t - k, 0)])
 
 
+def test_a_reset_leaves_the_stacks_it_handed_out_unchanged():
+    # TorchRL's step_and_maybe_reset keeps the step's ("next", "observation") without a copy: a
+    # reset that wrote in place would turn a finished episode's last observation into the next's first.
+    env = WaterAirEnv(EnvConfig(frames=2, **SMALL))
+    td = env.reset()
+    for _ in range(3):
+        td = env.step(td.set("action", torch.rand(6, 4) * 2 - 1))["next"]
+    held, copy = td["observation"], td["observation"].clone()
+    restarted = env.reset(td.clone().set("_reset", torch.ones(6, 1, dtype=torch.bool)))
+    torch.testing.assert_close(held, copy, rtol=0, atol=0)
+    assert not torch.equal(restarted["observation"], copy)
+
+
 def test_a_partial_reset_restarts_only_its_rows_stacks():
     env = WaterAirEnv(EnvConfig(frames=2, **SMALL))
     td = env.reset()

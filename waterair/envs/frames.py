@@ -18,7 +18,12 @@ class FrameStack:
         self.frames = torch.zeros(batch, frames, size, dtype=dtype, device=device)
 
     def reset(self, rows: torch.Tensor, frame: torch.Tensor) -> torch.Tensor:
-        """Fill every slot of ``rows`` with their rows of ``frame`` ``[B, size]``; the stack ``[B, frames · size]``."""
+        """Fill every slot of ``rows`` with their rows of ``frame`` ``[B, size]``; the stack ``[B, frames · size]``.
+
+        Out of place: the stacks handed out earlier stay as they were (a collector's last ``next``
+        observation of a finished episode must not turn into the new episode's first).
+        """
+        self.frames = self.frames.clone()
         self.frames[rows] = frame[rows].unsqueeze(1).expand(-1, self.frames.shape[1], -1)
         return self.frames.flatten(1)
 
