@@ -27,6 +27,7 @@ TRAIN_TINY = [
     "env.max_steps=50",
     "total_frames=800",
     "collector.frames_per_batch=400",
+    "collector.init_random_frames=400",
     "checkpoint.every_frames=800",
     "eval.realisations=2",
     "eval.steps=10",
@@ -96,7 +97,7 @@ def test_sensing_decides_whose_sensor_a_learned_policy_and_its_controllers_use(t
     assert config.latency_steps == 1 and config.intensity_noise == 0.05 and trained.env.latency_steps == 0
     sensed = [(c.latency_steps, [label for label, _ in members]) for c, members in trained.groups]
     late = ["aoa_tracker (1-step latency, noisy, saturating)", "intensity_dither (1-step latency, noisy, saturating)"]
-    assert (1, [*late, trained.policies[0].label]) in sensed
+    assert (1, late) in sensed and (1, [trained.policies[0].label]) in sensed
     scenario = prepare(eval_cfg(f"run={tiny_run}", "sensing=scenario"))
     assert scenario.learned[0][1].latency_steps == 0
     assert all(c.latency_steps == 0 for c, _ in scenario.groups) and len(scenario.groups) == 2
@@ -145,7 +146,7 @@ def test_every_policy_sees_the_same_seas_and_stays_under_the_upper_bound(tiny_ru
     spot = write_policy(tmp_path / "spot.pt", observation_size=10, extras=("spot",))
     result = evaluate(eval_cfg(f"run={tiny_run}", f"checkpoint={spot}"), progress=lambda _: None)
     kinds = [p["kind"] for p in result.policies]
-    assert kinds == ["bound", "learned", "learned"] + ["baseline"] * 6
+    assert kinds == ["bound", "learned", "learned"] + ["baseline"] * (6 + 2)  # + the controllers with the run's sensing
     for scenario, traces in result.traces.items():
         reference = traces["upper_bound"]["gain_upper_bound"]
         for label, trace in traces.items():
@@ -280,8 +281,9 @@ def test_exported_policy_acts_like_the_run_it_came_from(tiny_run, tmp_path):
     assert (tmp_path / "policy.yaml").exists() and (tmp_path / "policy_metrics.json").exists()
     assert exported.stat().st_size < (tiny_run / "checkpoints" / "last.pt").stat().st_size / 2
     run, export = load_policy(tiny_run / "checkpoints" / "last.pt"), load_policy(exported)
-    observation = torch.randn(5, 8)
-    actors = [p.actor(None, 8) for p in (run, export)]
+    size = run.file.observation_size
+    observation = torch.randn(5, size)
+    actors = [p.actor(None, size) for p in (run, export)]
     outputs = [a.module(observation) for a in actors]
     torch.testing.assert_close(outputs[0], outputs[1], rtol=0, atol=0)
     assert export.file.frames == 800 and export.config.actor.hidden == [32, 32]
@@ -312,5 +314,5 @@ def test_each_shipped_policy_loads_matches_its_metrics_and_has_the_documented_co
     assert policy.file.frames == documented["total_frames"]
     metrics = json.loads(path.with_name(f"{name}_metrics.json").read_text())
     assert metrics["frames"] == policy.file.frames
-    assert short_check(path) == pytest.approx(metrics["check"], rel=1e-4)
+    assert short_check(path) == pytest.approx(metrics["check"], rel=1e-3)
     assert metrics["agent/ratio_to_ub"] > metrics["straight_facing/ratio_to_ub"]

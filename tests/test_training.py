@@ -190,7 +190,7 @@ def test_multirun_with_joblib_writes_a_summary(tmp_path):
     assert "env.wind=8" in lines[1] and "env.wind=12" in lines[2]
     assert "agent/mean_gain" in lines[0]
     table = (tmp_path / "summary.md").read_text()
-    assert table.count("| 0 |") == 1 and table.count("| 1 |") == 1 and "best − worst" in table
+    assert table.count("| 0 | `") == 1 and table.count("| 1 | `") == 1 and "best − worst" in table
     png = tmp_path / "learning_curves.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
 
@@ -236,12 +236,13 @@ def test_run_dir_defaults_to_a_dated_folder_and_resume_continues_in_place(resume
 
 PRESET_RUNS = {
     "paper": (["+experiment=paper"], 8),
-    "intensity": (["env/observation=intensity"], 28),
-    "quadrant": ([], 13),
+    "intensity": (["env/observation=intensity"], 2 * 28),
+    "quadrant": ([], 2 * 13),
     "quadrant-flat-base-3-frames": (["env.residual_base=flat_snell", "env.frames=3"], 39),
 }
-"""Short runs: each observation preset (the defaults: residual actions on the aoa base, realistic
-sensor), the paper preset (absolute actions) and frame stacking; the observation size each gives."""
+"""Short runs: each observation preset (the defaults: residual actions on the preset's base, realistic
+sensor, two frames), the paper preset (absolute actions, one frame) and three frames; the observation
+size each gives."""
 
 
 @pytest.mark.slow

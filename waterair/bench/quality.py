@@ -6,12 +6,14 @@ measured in this one process, one after the other:
 
 * **ours**: ``train()`` with the defaults at that one point, for growing budgets (``budgets``
   frames, each a fresh run from scratch; the first that reaches the target counts). Its time is the
-  whole run (environment construction, compiles and training) without the closing evaluation;
+  whole run (environment construction, compiles and training) without the closing evaluation. A
+  budget within ``collector.init_random_frames`` (16,000) makes no update: its policy is the zero
+  residual, i.e. the base controller, which is the pipeline's starting point;
 * **ours, flat-Snell base**: the same with residual actions on flat-sea Snell instead of the
   quadrant back-projection, so that the agent must learn the tracking itself;
 * **sb3**: Stable-Baselines3 DDPG on our Gymnasium view with the same observation, sensor,
-  residual actions, networks, learning rates, batch, discount, noise and updates per frame, for
-  ``sb3_frames`` frames (its wall time includes model construction).
+  residual actions, reward, networks, learning rates, batch, discount, noise and updates per
+  frame, for ``sb3_frames`` frames (its wall time includes model construction), one link at a time.
 
 Every greedy policy is scored with evaluation's own runner on the same 32 seas × 500 steps
 (evaluation seed 12345, never a training seed). Needs ``stable_baselines3`` for the last row.
@@ -24,9 +26,11 @@ import time
 from pathlib import Path
 
 import torch
+from omegaconf import OmegaConf
 from tensordict.nn import TensorDictModuleBase
 
 from waterair.bench.training import compose_training
+from waterair.envs.rewards import Reward
 from waterair.evaluation.runner import compare_policies
 from waterair.evaluation.scenarios import Scenario
 from waterair.training.builders import env_config
@@ -104,7 +108,7 @@ def sb3(frames: int) -> dict | None:
 
     cfg = compose_training([*POINT, "env.compile_kernel=false"])
     start = time.perf_counter()
-    env = WaterAirGymEnv(env_config(cfg))
+    env = WaterAirGymEnv(env_config(cfg), reward=Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True)))
     model = DDPG(
         "MlpPolicy",
         env,

@@ -46,6 +46,8 @@ def summary(cfg: DictConfig, run_dir: Path, metrics: dict[str, float], seconds: 
     """The closing lines: where the run is, what it did, how the greedy policy scored, what to run next."""
     minutes, rest = divmod(round(seconds), 60)
     ratio = {label: metrics[f"{label}/ratio_to_ub"] for label in ("agent", "flat_snell", "straight_facing")}
+    classical = next((name for name in ("aoa_tracker", "intensity_dither") if f"{name}/ratio_to_ub" in metrics), None)
+    beside = f"{classical} {metrics[f'{classical}/ratio_to_ub']:.3f}, " if classical else ""
     return "\n".join(
         [
             "",
@@ -54,7 +56,7 @@ def summary(cfg: DictConfig, run_dir: Path, metrics: dict[str, float], seconds: 
             f"in {minutes} min {rest} s",
             f"Greedy policy at U10 = {cfg.env.wind:g} m/s, offset {cfg.env.offset_ratio:.0%} "
             f"({cfg.eval.realisations} seas × {cfg.eval.steps} steps): {ratio['agent']:.3f} of the upper bound "
-            f"(flat-sea Snell {ratio['flat_snell']:.3f}, straight facing {ratio['straight_facing']:.3f})",
+            f"({beside}flat-sea Snell {ratio['flat_snell']:.3f}, straight facing {ratio['straight_facing']:.3f})",
             f"TensorBoard: .venv/bin/tensorboard --logdir {run_dir / 'tensorboard'}",
             f"Full evaluation: .venv/bin/python evaluate.py run={run_dir}",
         ]

@@ -19,6 +19,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 
 from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
+from waterair.envs.rewards import Reward
 
 INFO_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid")
 OBSERVATION_BOUNDS = (-10.0, 10.0)
@@ -33,8 +34,8 @@ class WaterAirGymEnv(gymnasium.Env):
 
     metadata = {"render_modes": []}
 
-    def __init__(self, config: EnvConfig | None = None, **overrides):
-        self.env = WaterAirEnv(config, **{**overrides, "num_envs": 1, "dtype": "float32"})
+    def __init__(self, config: EnvConfig | None = None, *, reward: Reward | None = None, **overrides):
+        self.env = WaterAirEnv(config, reward=reward, **{**overrides, "num_envs": 1, "dtype": "float32"})
         size = self.env.observation_size
         self.observation_space = spaces.Box(*OBSERVATION_BOUNDS, shape=(size,), dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)

@@ -94,11 +94,6 @@ class Reward:
             raise ValueError(f"reward.{unknown[0]} is not a known key; allowed: {', '.join(known)}")
         return cls(**values)
 
-    @property
-    def minimum(self) -> float:
-        """R at I = 0 (the reward of a lost link)."""
-        return float(self(torch.zeros((), dtype=torch.float64)))
-
 
 def le_reward_terms(intensity: torch.Tensor, reward: Reward) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """The three LE terms ln(aI + 1), log10(b max(I, floor)), exp(cI), for calibration plots."""

@@ -214,9 +214,13 @@ def _policy_groups(base: EnvConfig, baselines: list[str], learned, together: boo
     reference = base.replace(observation_extras=tuple(dict.fromkeys((*base.observation_extras, *required))))
     references = [(reference, [(name, name) for name in baselines])] if baselines else []
     controllers = [name for name in baselines if name in CONTROLLERS]
+    labels: list[str] = []
     for sensing in dict.fromkeys(tuple(c.sensing.items()) for _, c, _ in learned):
         if controllers and dict(sensing) != reference.sensing:
             label = sensing_label(dict(sensing))
+            labels.append(label)
+            if labels.count(label) > 1:  # two sensor settings that read alike
+                label = f"{label} #{labels.count(label)}"
             members = [(f"{name} ({label})", name) for name in controllers]
             references.append((reference.replace(**dict(sensing)), members))
     if not together:

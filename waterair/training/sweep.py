@@ -18,6 +18,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from waterair.core.files import atomic_write_csv, atomic_write_text
 
+CLASSICAL = ("aoa_tracker", "intensity_dither")
+"""The classical controller the closing evaluation scored beside the agent (the one of its sensing)."""
 CURVE_KEY = "train/gain_ratio_ub"
 """The column of each job's ``metrics.csv`` the learning curves plot."""
 
@@ -48,16 +50,21 @@ def summarise(root: Path) -> list[dict]:
 
 
 def summary_table(rows: list[dict]) -> str:
-    """A Markdown table: per job, the greedy agent's and flat-sea Snell's ratio to UB, and the spread."""
+    """A Markdown table: per job, the greedy agent's, the classical controller's and flat-sea Snell's ratio
+    to UB (the closing evaluation's, on the same seas), and the agent's spread over jobs."""
+    classical = [name for name in CLASSICAL if any(f"{name}/ratio_to_ub" in row for row in rows)]
     lines = [
-        "| job | overrides | frames | training (s) | agent ratio to UB | flat-Snell ratio to UB |",
-        "|---|---|---|---|---|---|",
+        "| job | overrides | frames | training (s) | agent ratio to UB | "
+        + "".join(f"{name} | " for name in classical)
+        + "flat-Snell |",
+        "|---" * (6 + len(classical)) + "|",
     ]
     for row in rows:
         seconds = row.get("train_seconds")
+        references = "".join(_ratio(row, name) + " | " for name in classical)
         lines.append(
             f"| {row['job']} | `{row['overrides']}` | {row['frames']} | {'–' if seconds is None else f'{seconds:.0f}'} "
-            f"| {row['agent/ratio_to_ub']:.3f} | {row['flat_snell/ratio_to_ub']:.3f} |"
+            f"| {row['agent/ratio_to_ub']:.3f} | {references}{row['flat_snell/ratio_to_ub']:.3f} |"
         )
     ratios = [row["agent/ratio_to_ub"] for row in rows]
     lines += [
@@ -66,6 +73,11 @@ def summary_table(rows: list[dict]) -> str:
         f"worst {min(ratios):.3f} (best − worst {max(ratios) - min(ratios):.3f}).",
     ]
     return "\n".join(lines) + "\n"
+
+
+def _ratio(row: dict, name: str) -> str:
+    value = row.get(f"{name}/ratio_to_ub")
+    return "–" if value is None else f"{value:.3f}"
 
 
 def read_curve(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -95,8 +107,9 @@ def learning_curves(curves: dict[str, tuple[np.ndarray, np.ndarray]], path: Path
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.fill_between(frames, smooth.min(0), smooth.max(0), color="tab:blue", alpha=0.25, label="range over jobs")
     ax.plot(frames, smooth.mean(0), color="tab:blue", linewidth=2, label=f"mean over {len(curves)} jobs")
+    ax.set_title("ratio to the upper bound on the training links (with exploration noise)", fontsize=10)
     ax.set_xlabel("frames (environment steps over all links)")
-    ax.set_ylabel("mean G / mean G_UB (training links, with exploration)")
+    ax.set_ylabel("mean G / mean G_UB")
     ax.set_ylim(0, 1)
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right")
