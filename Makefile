@@ -22,7 +22,7 @@ train: $(STAMP)
 	$(PYTHON) train.py hydra.run.dir=$(RUN) $(ARGS)
 	$(PYTHON) evaluate.py run=$(RUN) hydra.run.dir=$(RUN)/evaluation
 
-# Evaluate the shipped default policy (or ARGS="run=outputs/train/DATE/TIME").
+# Evaluate the shipped policies (or ARGS="run=outputs/train/DATE/TIME").
 evaluate: $(STAMP)
 	$(PYTHON) evaluate.py $(ARGS)
 

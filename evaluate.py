@@ -1,6 +1,6 @@
 """Evaluate trained policies against the baselines and the upper bound on scenarios S1-S3.
 
-``python evaluate.py`` (the shipped policy), ``python evaluate.py run=outputs/train/DATE/TIME``,
+``python evaluate.py`` (the shipped policies), ``python evaluate.py run=outputs/train/DATE/TIME``,
 ``python evaluate.py run=[RUN_A,RUN_B] labels=[ddpg,td3]``, ``python evaluate.py checkpoint=FILE``.
 Writes metrics.json, metrics.csv, the figures and report.md into the Hydra run directory
 (outputs/evaluate/DATE/TIME). See docs/evaluation.md. The whole command line, checkpoints included,

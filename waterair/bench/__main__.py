@@ -14,7 +14,7 @@ meaningful. Timings are wall-clock medians after a warm-up.
 * ``quality``: wall time to a greedy 0.95 of the upper bound at the S1 point, ours against
   Stable-Baselines3 DDPG, measured in one run (:mod:`.quality`).
 * ``summary``: the speed targets as ratios, from the JSON files of the suites above (:mod:`.summary`).
-* ``evaluate``: the default evaluation (shipped policy, every baseline, S1-S3), all policies in
+* ``evaluate``: the default evaluation (shipped policies, every baseline, S1-S3), all policies in
   one batch against one rollout per policy (:mod:`.evaluate`).
 
 Nothing imports this package; it may import every other one.

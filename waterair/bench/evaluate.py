@@ -1,6 +1,6 @@
 """Evaluation benchmark: ``python -m waterair.bench evaluate`` (see :mod:`waterair.bench`).
 
-Times ``evaluate.py``'s work on the default scenarios (shipped policy, every baseline) twice in one
+Times ``evaluate.py``'s work on the default scenarios (shipped policies, every baseline) twice in one
 process: all policies of a scenario in one batch (``batch_policies=true``, the default) and one
 rollout per policy. The kernel is compiled by a small warm-up first, so neither pays for it.
 """

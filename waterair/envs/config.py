@@ -77,7 +77,7 @@ class EnvConfig:
     # dynamics and interface (docs/environment.md)
     dt: float = 0.05  # s
     max_steps: int = 500  # steps per episode (truncation)
-    action_mode: str = "absolute"  # absolute | delta | residual (on top of the flat-sea Snell pointing)
+    action_mode: str = "absolute"  # absolute | delta | residual (on top of residual_base's pointing)
     residual_deg: float = 15.0  # residual mode: the largest deviation from the base controller's pointing
     residual_base: str = "flat_snell"  # residual mode: flat_snell | aoa_tracker (needs spot and spot_valid)
     max_tilt_deg: float = 45.0  # largest pointing tilt from vertical

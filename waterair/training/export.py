@@ -58,7 +58,7 @@ def short_check(path: str | Path) -> dict[str, float]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m waterair.training.export", description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", type=Path, help="a training run directory")
-    parser.add_argument("out", type=Path, help="output path without suffix, e.g. waterair/assets/default_policy")
+    parser.add_argument("out", type=Path, help="output path without suffix, e.g. waterair/assets/default")
     args = parser.parse_args(argv)
     try:
         print(export_policy(args.run_dir, args.out))
