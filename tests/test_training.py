@@ -260,7 +260,7 @@ def test_a_short_run_with_each_preset_trains_reloads_and_evaluates(run, tmp_path
     observation = torch.randn(5, size, generator=torch.Generator().manual_seed(0))
     trained = make_actor(cfg, WaterAirEnv(config.replace(num_envs=5)), "cpu")
     trained.load_state_dict(torch.load(tmp_path / "checkpoints" / "last.pt", weights_only=True)["actor"])
-    torch.testing.assert_close(actor(observation=observation)["action"], trained(observation=observation)["action"])
+    torch.testing.assert_close(actor.module(observation), trained.module(observation))
     point = ((12.0, 0.1, 0.0),)
     scenario = Scenario("check", "reload", None, point, realisations=2, steps=10, seed=99)
     results = compare_policies(config, {"reloaded": actor, "flat_snell": "flat_snell"}, scenario)
