@@ -44,6 +44,14 @@ def test_the_paper_preset_is_the_papers_table_one_override_away():
     assert (cfg.noise.sigma_init, cfg.noise.sigma_end, cfg.total_frames) == (0.1, 0.02, 250_000)
     assert cfg.env.observation_extras == [] and cfg.env.latency_steps == 0 and cfg.env.action_mode == "absolute"
     assert cfg.reward.pointing == 0.0 and cfg.env.offset_range is None and cfg.agent.name == "ddpg"
+    assert cfg.agent.policy_weights == "last"
+
+
+def test_an_averaged_policy_without_a_target_actor_is_a_one_line_error():
+    cfg = compose_config("config", ["agent.loss.delay_actor=false"])
+    with pytest.raises(ValueError, match=r"^agent.policy_weights = 'average' needs the target actor"):
+        validate(cfg)
+    validate(compose_config("config", ["agent.loss.delay_actor=false", "agent.policy_weights=last"]))
 
 
 @pytest.mark.parametrize("launcher", LAUNCHERS)

@@ -87,6 +87,21 @@ def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, extra):
     assert rows[0].startswith("frames,") and len(rows) == 1 + 4
 
 
+@pytest.mark.parametrize("weights", ["average", "last"])
+def test_the_saved_policy_is_the_averaged_or_the_last_actor(weights, tmp_path):
+    cfg = compose_cfg("total_frames=800", f"agent.policy_weights={weights}")
+    train(cfg, tmp_path)
+    state = torch.load(tmp_path / "checkpoints" / "last.pt", weights_only=True)
+    online = {k[len("actor_network_params.") :]: v for k, v in state["loss"].items() if k.startswith("actor_network")}
+    target = {k[len("target_actor_network_params.") :]: v for k, v in state["loss"].items() if k.startswith("target_a")}
+    assert set(state["actor"]) == set(online) == set(target)
+    saved, other = (target, online) if weights == "average" else (online, target)
+    for key, value in state["actor"].items():
+        torch.testing.assert_close(value, saved[key], rtol=0, atol=0)
+    # after 400 updates at tau = 0.001 the average still trails the actor: the two differ
+    assert any(not torch.equal(value, other[key]) for key, value in state["actor"].items())
+
+
 @pytest.mark.slow
 def test_killed_run_resumes_to_the_configured_frames(tmp_path):
     run_dir = tmp_path / "run"

@@ -1,13 +1,14 @@
 """The training checkpoint: a policy file (``waterair.agents.checkpoint``) plus the learner's state.
 
-``checkpoints/last.pt`` holds the policy entries (format tag, actor weights, observation size,
-frames) that evaluation reads, and everything a resumed run needs: counters, the loss module
+``checkpoints/last.pt`` holds the policy entries (format tag, the greedy policy's weights,
+observation size, frames) that evaluation reads, and everything a resumed run needs: counters, the loss module
 (networks and target networks), exploration noise, optimisers and random-number states. It is
 written atomically; the replay buffer, when kept, is dumped next to it first.
 """
 
 from __future__ import annotations
 
+import copy
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,6 +45,16 @@ class Learner:
     sensor_generator: torch.Generator
     buffer: object
     observation_size: int
+    average: bool = False  # the greedy policy is the actor's Polyak average (its target network)
+
+    def policy(self) -> torch.nn.Module:
+        """The greedy policy the run saves and evaluates (``agent.policy_weights``): the actor's last
+        iterate, or a snapshot of its Polyak average, the loss's target actor (rate ``agent.tau``)."""
+        if not self.average:
+            return self.actor
+        policy = copy.deepcopy(self.actor)
+        policy.load_state_dict(dict(self.loss.target_actor_network_params.flatten_keys(".").items()))
+        return policy
 
 
 def save_checkpoint(run_dir: Path, progress: Progress, learner: Learner, keep_buffer: bool) -> Path:
@@ -56,7 +67,7 @@ def save_checkpoint(run_dir: Path, progress: Progress, learner: Learner, keep_bu
     """
     run_dir = Path(run_dir)
     state = {
-        **policy_state(learner.actor, learner.observation_size, progress.frames),
+        **policy_state(learner.policy(), learner.observation_size, progress.frames),
         "updates": progress.updates,
         "episodes": progress.episodes,
         "loss": learner.loss.state_dict(),

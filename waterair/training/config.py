@@ -20,6 +20,8 @@ CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 """The repository's Hydra config directory (the package is installed in place)."""
 LOSSES = {"ddpg": "torchrl.objectives.DDPGLoss", "td3": "torchrl.objectives.TD3Loss"}
 """The loss class each ``agent.name`` instantiates (``agent.loss._target_``)."""
+POLICY_WEIGHTS = ("average", "last")
+"""What the saved and evaluated policy is: the actor's Polyak average (its target network), or its last iterate."""
 NOISES = ("gaussian", "ou")
 BUFFERS = ("memory", "memmap")
 NETWORKS = ("mlp",)
@@ -64,6 +66,12 @@ def _check_agent(agent: DictConfig) -> None:
     check_choice("agent.name", agent.name, LOSSES)
     check_range("agent.gamma", agent.gamma, 0.0, 1.0, high_open=True)
     check_range("agent.tau", agent.tau, 0.0, 1.0, low_open=True)
+    check_choice("agent.policy_weights", agent.policy_weights, POLICY_WEIGHTS)
+    if agent.policy_weights == "average" and agent.name == "ddpg" and not agent.loss.delay_actor:
+        raise ValueError(
+            "agent.policy_weights = 'average' needs the target actor it averages into; set "
+            "agent.loss.delay_actor=true or agent.policy_weights=last"
+        )
     check_choice("agent.loss._target_", agent.loss._target_, (LOSSES[agent.name],))
     if agent.name == "td3":
         check_int("agent.policy_delay", agent.policy_delay, 1, 1000)

@@ -66,7 +66,16 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
     buffer = make_buffer(cfg, run_dir, device)
     base = env.base_env
     learner = Learner(
-        actor, loss, noise, optim_actor, optim_critic, base.rng, base.sensor_rng, buffer, base.observation_size
+        actor,
+        loss,
+        noise,
+        optim_actor,
+        optim_critic,
+        base.rng,
+        base.sensor_rng,
+        buffer,
+        base.observation_size,
+        average=cfg.agent.policy_weights == "average",
     )
     counters = load_checkpoint(run_dir, learner, cfg.checkpoint.keep_buffer) if resumed else Progress()
 
@@ -118,7 +127,7 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
     clock = time.perf_counter()
     seas = f"{cfg.eval.realisations} seas × {cfg.eval.steps} steps"
     progress(f"Evaluating the greedy policy, the baselines and the classical controller on {seas} …")
-    metrics.update(final_evaluation(cfg, actor))
+    metrics.update(final_evaluation(cfg, learner.policy()))
     progress(f"Evaluated in {time.perf_counter() - clock:.0f} s")
     # The evaluation goes to TensorBoard and final_metrics.json; the CSV keeps one row per batch.
     log.scalars(counters.frames, {f"eval/{k}": v for k, v in metrics.items() if "/" in k}, csv_row=False)
