@@ -1,7 +1,7 @@
 """Train a beam-alignment agent: ``python train.py [group=option] [key=value ...]``.
 
 Examples: ``python train.py env.wind=8 agent=td3``, ``python train.py resume=outputs/train/DATE/TIME``,
-``python train.py -m env.wind=8,12 agent.gamma=0.2,0.9 hydra/launcher=joblib``. See docs/training.md.
+``python train.py -m env.wind=8,12 agent.gamma=0,0.2 hydra/launcher=joblib``. See docs/training.md.
 The whole command line is checked before Hydra creates the run directory.
 """
 
