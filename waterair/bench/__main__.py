@@ -67,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     quality = sub.add_parser("quality", help="wall time to a greedy 0.95 of UB: ours vs Stable-Baselines3 DDPG")
     quality.add_argument("--budgets", type=int, nargs="+", default=[1600, 8000, 40000], help="our runs' frames")
     quality.add_argument(
-        "--flat-budgets", type=int, nargs="+", default=[40000, 160000], help="frames, flat-Snell base runs"
+        "--flat-budgets", type=int, nargs="+", default=[40000, 80000, 160000], help="frames, flat-Snell base runs"
     )
     quality.add_argument("--sb3-frames", type=int, default=40_000, help="Stable-Baselines3 DDPG frames")
     quality.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")

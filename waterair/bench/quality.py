@@ -13,7 +13,8 @@ measured in this one process, one after the other:
   quadrant back-projection, so that the agent must learn the tracking itself;
 * **sb3**: Stable-Baselines3 DDPG on our Gymnasium view with the same observation, sensor,
   residual actions, reward, networks, learning rates, batch, discount, noise and updates per
-  frame, for ``sb3_frames`` frames (its wall time includes model construction), one link at a time.
+  frame, for ``sb3_frames`` frames (its wall time includes model construction), one link at a time;
+* **sb3, flat-Snell base**: the same on the flat-Snell residual interface, beside ours on it.
 
 Every greedy policy is scored with evaluation's own runner on the same 32 seas × 500 steps
 (evaluation seed 12345, never a training seed). Needs ``stable_baselines3`` for the last row.
@@ -35,6 +36,8 @@ from waterair.evaluation.runner import compare_policies
 from waterair.evaluation.scenarios import Scenario
 from waterair.training.builders import env_config
 
+FLAT_BASE = ["env.residual_base=flat_snell", "env.residual_deg=15"]
+"""Residual actions on flat-sea Snell (±15°): the agent must learn the tracking itself."""
 POINT = [
     "env/sensor=ideal",
     "env.wind_range=null",
@@ -95,8 +98,9 @@ class SB3Actor(TensorDictModuleBase):
         return tensordict.set("action", action.clamp(-1.0, 1.0))
 
 
-def sb3(frames: int) -> dict | None:
-    """Stable-Baselines3 DDPG for ``frames`` frames on the Gymnasium view of the same link: seconds and ratio."""
+def sb3(frames: int, overrides: list[str]) -> dict | None:
+    """Stable-Baselines3 DDPG for ``frames`` frames on the Gymnasium view of the same link (the defaults
+    with ``overrides``): seconds and ratio."""
     try:
         from stable_baselines3 import DDPG
         from stable_baselines3.common.noise import NormalActionNoise
@@ -106,7 +110,7 @@ def sb3(frames: int) -> dict | None:
 
     from waterair.envs.gym import WaterAirGymEnv
 
-    cfg = compose_training([*POINT, "env.compile_kernel=false"])
+    cfg = compose_training([*POINT, *overrides, "env.compile_kernel=false"])
     start = time.perf_counter()
     env = WaterAirGymEnv(env_config(cfg), reward=Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True)))
     model = DDPG(
@@ -127,16 +131,18 @@ def sb3(frames: int) -> dict | None:
     )
     model.learn(frames)
     seconds = time.perf_counter() - start
-    return {"frames": frames, "seconds": seconds, "ratio_to_ub": score(cfg, SB3Actor(model))}
+    return {"overrides": overrides, "frames": frames, "seconds": seconds, "ratio_to_ub": score(cfg, SB3Actor(model))}
 
 
 def bench_quality(budgets: list[int], flat_budgets: list[int], sb3_frames: int, target: float = 0.95) -> dict:
     record = {"benchmark": "quality", "target": target, "scenario": "S1 point, 32 seas x 500 steps, seed 12345"}
     record["ours"] = ours(budgets, target, [])
-    record["ours_flat_base"] = ours(flat_budgets, target, ["env.residual_base=flat_snell", "env.residual_deg=15"])
-    record["sb3"] = sb3(sb3_frames)
-    if record["sb3"] is not None and record["ours"]["seconds_to_target"] is not None:
-        record["sb3_over_ours"] = record["sb3"]["seconds"] / record["ours"]["seconds_to_target"]
+    record["ours_flat_base"] = ours(flat_budgets, target, FLAT_BASE)
+    record["sb3"] = sb3(sb3_frames, [])
+    record["sb3_flat_base"] = sb3(sb3_frames, FLAT_BASE)
+    for theirs, mine in (("sb3", "ours"), ("sb3_flat_base", "ours_flat_base")):
+        if record[theirs] is not None and record[mine]["seconds_to_target"] is not None:
+            record[f"{theirs}_over_{mine}"] = record[theirs]["seconds"] / record[mine]["seconds_to_target"]
     return record
 
 
@@ -145,9 +151,12 @@ def quality_table(record: dict) -> str:
     for name in ("ours", "ours_flat_base"):
         for run in record[name]["runs"]:
             lines.append(f"| {name} | {run['frames']:,} | {run['seconds']:.0f} | {run['ratio_to_ub']:.3f} |")
-    if record["sb3"] is not None:
-        sb = record["sb3"]
-        lines.append(f"| sb3 DDPG | {sb['frames']:,} | {sb['seconds']:.0f} | {sb['ratio_to_ub']:.3f} |")
-    if "sb3_over_ours" in record:
-        lines.append(f"| SB3 seconds / ours to {record['target']} | | {record['sb3_over_ours']:.1f} | |")
+    for name in ("sb3", "sb3_flat_base"):
+        if record[name] is not None:
+            sb = record[name]
+            lines.append(f"| {name} DDPG | {sb['frames']:,} | {sb['seconds']:.0f} | {sb['ratio_to_ub']:.3f} |")
+    for theirs, mine in (("sb3", "ours"), ("sb3_flat_base", "ours_flat_base")):
+        if f"{theirs}_over_{mine}" in record:
+            ratio = record[f"{theirs}_over_{mine}"]
+            lines.append(f"| {theirs} seconds / {mine}'s to {record['target']} | | {ratio:.1f} | |")
     return "\n".join(lines)
