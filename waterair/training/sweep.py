@@ -90,7 +90,8 @@ def read_curve(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def learning_curves(curves: dict[str, tuple[np.ndarray, np.ndarray]], path: Path, window: int = 5) -> Path | None:
-    """Mean and range over jobs of the ratio to UB against frames (a ``window``-batch moving average)."""
+    """Mean and range over jobs of the ratio to UB against frames (a ``window``-batch moving average):
+    the whole run on the left, and on the right its last four fifths, scaled to the data, with each job's curve."""
     if not curves:
         return None
     import matplotlib
@@ -104,15 +105,26 @@ def learning_curves(curves: dict[str, tuple[np.ndarray, np.ndarray]], path: Path
     smooth = np.stack(
         [np.convolve(np.pad(v[:length], (window - 1, 0), mode="edge"), kernel, "valid") for _, v in curves.values()]
     )
-    fig, ax = plt.subplots(figsize=(7, 4))
-    ax.fill_between(frames, smooth.min(0), smooth.max(0), color="tab:blue", alpha=0.25, label="range over jobs")
-    ax.plot(frames, smooth.mean(0), color="tab:blue", linewidth=2, label=f"mean over {len(curves)} jobs")
-    ax.set_title("ratio to the upper bound on the training links (with exploration noise)", fontsize=10)
-    ax.set_xlabel("frames (environment steps over all links)")
-    ax.set_ylabel("mean G / mean G_UB")
-    ax.set_ylim(0, 1)
-    ax.grid(alpha=0.3)
-    ax.legend(loc="lower right")
+    fig, (whole, late) = plt.subplots(1, 2, figsize=(11, 4))
+    for ax in (whole, late):
+        ax.fill_between(frames, smooth.min(0), smooth.max(0), color="tab:blue", alpha=0.25, label="range over jobs")
+        ax.plot(frames, smooth.mean(0), color="tab:blue", linewidth=2, label=f"mean over {len(curves)} jobs")
+        ax.set_xlabel("frames (environment steps over all links)")
+        ax.xaxis.set_major_formatter(lambda value, _: f"{value / 1000:g}k")
+        ax.grid(alpha=0.3)
+    whole.set_ylabel("mean G / mean G_UB")
+    whole.set_ylim(0, 1)
+    whole.set_title("ratio to the upper bound on the training links (with exploration noise)", fontsize=10)
+    whole.legend(loc="lower right")
+    start = length // 5
+    for job, values in zip(curves, smooth, strict=True):
+        late.plot(frames[start:], values[start:], linewidth=0.8, alpha=0.8, label=f"job {job}")
+    low, high = smooth[:, start:].min(), smooth[:, start:].max()
+    margin = max(0.005, 0.1 * (high - low))
+    late.set_xlim(frames[start], frames[-1])
+    late.set_ylim(low - margin, high + margin)
+    late.set_title("the last four fifths, scaled to the data", fontsize=10)
+    late.legend(loc="lower right", fontsize=8, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
