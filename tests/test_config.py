@@ -29,9 +29,14 @@ def test_every_group_is_covered():
     assert {"calm", "moderate", "rough"} <= {option for group, option in OPTIONS if group == "env/sea"}
 
 
+OFF_POLICY_ONLY = {("noise", "ou")}
+"""Options of other groups that only an off-policy agent reads (PPO learns its own action noise)."""
+
+
 @pytest.mark.parametrize("group,option", OPTIONS, ids=[f"{g}={o}" for g, o in OPTIONS])
 def test_every_option_composes_and_validates(group, option):
-    cfg = compose_config("config", [f"{group}={option}"])
+    agent = ["agent=ddpg"] if (group, option) in OFF_POLICY_ONLY else []
+    cfg = compose_config("config", [*agent, f"{group}={option}"])
     validate(cfg)
     if group in SELECTED:
         assert cfg[group].name == NAMED_AS.get((group, option), option)
@@ -48,10 +53,10 @@ def test_the_paper_preset_is_the_papers_table_one_override_away():
 
 
 def test_an_averaged_policy_without_a_target_actor_is_a_one_line_error():
-    cfg = compose_config("config", ["agent.loss.delay_actor=false"])
+    cfg = compose_config("config", ["agent=ddpg", "agent.loss.delay_actor=false"])
     with pytest.raises(ValueError, match=r"^agent.policy_weights = 'average' needs the target actor"):
         validate(cfg)
-    validate(compose_config("config", ["agent.loss.delay_actor=false", "agent.policy_weights=last"]))
+    validate(compose_config("config", ["agent=ddpg", "agent.loss.delay_actor=false", "agent.policy_weights=last"]))
 
 
 @pytest.mark.parametrize("launcher", LAUNCHERS)
@@ -64,12 +69,42 @@ def test_every_launcher_composes(launcher):
 @pytest.mark.parametrize(
     "group,option,unread",
     [("reward", "linear", {"a", "b", "c", "gain", "bias", "floor"}), ("reward", "log", {"a", "b", "c", "gain"}),
-     ("agent", "ddpg", {"policy_delay", "policy_noise", "noise_clip"}), ("noise", "gaussian", {"theta"}),
+     ("agent", "ddpg", {"policy_delay", "policy_noise", "noise_clip", "lmbda", "max_grad_norm"}),
+     ("agent", "ppo", {"tau", "policy_delay", "policy_noise", "noise_clip"}), ("noise", "gaussian", {"theta"}),
      ("buffer", "memory", {"scratch_dir"})],
 )  # fmt: skip
 def test_option_files_carry_no_key_their_option_ignores(group, option, unread):
-    keys = set(OmegaConf.load(ROOT / "conf" / group / f"{option}.yaml"))
-    assert not keys & unread
+    keys = OmegaConf.load(ROOT / "conf" / group / f"{option}.yaml")
+    keys = set(keys[group] if group == "agent" else keys)  # an agent option sets its learning rates too
+    assert keys and not keys & unread
+
+
+def test_each_agent_option_sets_its_learning_rates_and_update_schedule():
+    for option in GROUPS["agent"]:
+        cfg = OmegaConf.load(ROOT / "conf" / "agent" / f"{option}.yaml")
+        assert set(cfg) == {"agent", "actor", "critic", "collector"}, option
+        assert set(cfg.collector) == {"init_random_frames", "updates_per_frame"} and "lr" in cfg.actor, option
+    assert compose_config("config", ["agent=ddpg"]).collector.init_random_frames == 16000
+    assert compose_config("config", ["agent=ppo", "critic.lr=1e-3"]).critic.lr == 1e-3  # the command line wins
+
+
+@pytest.mark.parametrize(
+    "overrides,message",
+    [
+        (
+            ["agent=ppo", "agent.policy_weights=average"],
+            r"^agent.policy_weights = 'average' is not allowed with agent=ppo",
+        ),
+        (["agent=ppo", "noise=ou"], r"^agent=ppo learns its action noise, starting at noise.sigma_init; noise=ou"),
+        (["agent=ppo", "noise.sigma_end=0.01"], r"^agent=ppo learns its action noise.*sigma_end = 0.01"),
+        (["agent=ppo", "buffer.batch_size=2000"], r"^buffer.batch_size = 2000 is out of range"),
+        (["agent=ppo", "agent.loss.clip_epsilon=0"], r"^agent.loss.clip_epsilon = 0"),
+        (["agent=ppo", "checkpoint.keep_buffer=true"], r"^checkpoint.keep_buffer = true is not allowed with agent=ppo"),
+    ],
+)
+def test_ppo_settings_that_cannot_work_are_one_line_errors(overrides, message):
+    with pytest.raises(ValueError, match=message):
+        validate(compose_config("config", overrides))
 
 
 def test_a_loss_target_that_does_not_match_the_agent_is_a_one_line_error():

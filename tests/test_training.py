@@ -72,7 +72,9 @@ def run_cli(*args, timeout=300, **popen):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("extra", [[], ["agent=td3"], ["noise=ou"]], ids=["ddpg", "td3", "ou"])
+@pytest.mark.parametrize(
+    "extra", [[], ["agent=ddpg"], ["agent=td3"], ["agent=ddpg", "noise=ou"]], ids=["ppo", "ddpg", "td3", "ou"]
+)
 def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, extra):
     metrics = train(compose_cfg("total_frames=1600", *extra), tmp_path)
     assert metrics["frames"] == 1600 and metrics["updates"] > 0
@@ -89,7 +91,7 @@ def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, extra):
 
 @pytest.mark.parametrize("weights", ["average", "last"])
 def test_the_saved_policy_is_the_averaged_or_the_last_actor(weights, tmp_path):
-    cfg = compose_cfg("total_frames=800", f"agent.policy_weights={weights}")
+    cfg = compose_cfg("agent=ddpg", "total_frames=800", f"agent.policy_weights={weights}")
     train(cfg, tmp_path)
     state = torch.load(tmp_path / "checkpoints" / "last.pt", weights_only=True)
     online = {k[len("actor_network_params.") :]: v for k, v in state["loss"].items() if k.startswith("actor_network")}
@@ -153,7 +155,7 @@ class Killed(Exception):
 
 @pytest.mark.slow
 def test_a_run_killed_between_buffer_dump_and_checkpoint_resumes_a_consistent_state(tmp_path, monkeypatch):
-    cfg = compose_cfg("total_frames=1200", "checkpoint.every_frames=400", "checkpoint.keep_buffer=true")
+    cfg = compose_cfg("agent=ddpg", "total_frames=1200", "checkpoint.every_frames=400", "checkpoint.keep_buffer=true")
     real_save, saves = checkpoint_module.save_policy, []
 
     def killed_at_the_second_checkpoint(path, state):
@@ -171,8 +173,8 @@ def test_a_run_killed_between_buffer_dump_and_checkpoint_resumes_a_consistent_st
     state = torch.load(folder / "last.pt", weights_only=True)
     assert state["frames"] == 400 and state["buffer"] == {"dir": "buffer-400", "size": 400}
 
-    resume = compose_cfg("total_frames=1200", "checkpoint.every_frames=400", "checkpoint.keep_buffer=true",
-                         f"resume={tmp_path}")  # fmt: skip
+    resume = compose_cfg("agent=ddpg", "total_frames=1200", "checkpoint.every_frames=400",
+                         "checkpoint.keep_buffer=true", f"resume={tmp_path}")  # fmt: skip
     plan = plan_resume(resume, [f"resume={tmp_path}"])
     assert plan.frames_done == 400 and not plan.finished
     metrics = train(plan.config, tmp_path)
@@ -184,7 +186,7 @@ def test_a_run_killed_between_buffer_dump_and_checkpoint_resumes_a_consistent_st
     shutil.rmtree(folder / "buffer-1200")  # a checkpoint whose dump is gone is refused, not resumed half-empty
     overrides = [f"resume={tmp_path}", "total_frames=1600"]
     with pytest.raises(ValueError, match="names the replay buffer .*buffer-1200, which is missing"):
-        train(plan_resume(compose_cfg(*overrides), overrides).config, tmp_path)
+        train(plan_resume(compose_cfg("agent=ddpg", *overrides), overrides).config, tmp_path)
 
 
 @pytest.mark.slow

@@ -1,12 +1,19 @@
-"""The actor and critic networks (TorchRL modules), built from their sizes and an activation name."""
+"""The actor and critic networks (TorchRL modules), built from their sizes and an activation name.
+
+The deterministic actor is what a policy file holds; an on-policy agent explores with
+:func:`make_gaussian_policy` around it, and learns with a state-value critic (:func:`make_value`).
+"""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 from tensordict.nn import TensorDictModule
+from tensordict.nn.distributions.continuous import AddStateIndependentNormalScale
 from torch import nn
-from torchrl.modules import MLP, ValueOperator
+from torchrl.data import Bounded
+from torchrl.modules import MLP, ProbabilisticActor, TanhNormal, ValueOperator
 
 ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
 """Activation names accepted by ``actor.activation`` / ``critic.activation``."""
@@ -42,3 +49,32 @@ def make_critic(observation_size: int, action_size: int, hidden: Sequence[int], 
         activation_class=ACTIVATIONS[activation],
     )
     return ValueOperator(net, in_keys=["observation", "action"])
+
+
+def make_gaussian_policy(actor: TensorDictModule, action_spec: Bounded, scale: float) -> ProbabilisticActor:
+    """The stochastic policy around ``actor``: action = tanh(u), u ~ N(MLP(observation), σ²).
+
+    It shares the actor's MLP, so its deterministic action tanh(MLP(observation)) is the actor's; σ
+    is one learned scale per action component, independent of the state, starting at ``scale``
+    (action units). It writes the action's log-probability, which PPO's ratio needs.
+    """
+    mlp = actor.module[0]
+    size = action_spec.shape[-1]
+    head = AddStateIndependentNormalScale(size, scale_mapping="exp", init_value=math.log(scale))
+    module = TensorDictModule(nn.Sequential(mlp, head), in_keys=["observation"], out_keys=["loc", "scale"])
+    return ProbabilisticActor(
+        module,
+        spec=action_spec,
+        in_keys=["loc", "scale"],
+        distribution_class=TanhNormal,
+        distribution_kwargs={"low": -1.0, "high": 1.0},
+        return_log_prob=True,
+    )
+
+
+def make_value(observation_size: int, hidden: Sequence[int], activation: str) -> ValueOperator:
+    """V(s): MLP on the ``observation`` (the state-value critic of an on-policy agent), on the CPU."""
+    net = MLP(
+        in_features=observation_size, out_features=1, num_cells=list(hidden), activation_class=ACTIVATIONS[activation]
+    )
+    return ValueOperator(net, in_keys=["observation"])

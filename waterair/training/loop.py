@@ -12,6 +12,7 @@ from pathlib import Path
 
 import torch
 from omegaconf import DictConfig, OmegaConf
+from tensordict.nn.distributions.continuous import AddStateIndependentNormalScale
 from tqdm import tqdm
 
 from waterair.core.devices import resolve_device
@@ -20,7 +21,7 @@ from waterair.evaluation.metrics import METRICS, OUTAGE_FRACTION
 from waterair.evaluation.runner import compare_policies
 from waterair.evaluation.scenarios import Scenario
 from waterair.training.builders import (
-    TRANSITION_KEYS,
+    ON_POLICY,
     env_config,
     make_actor,
     make_buffer,
@@ -28,6 +29,7 @@ from waterair.training.builders import (
     make_critic,
     make_env,
     make_exploration,
+    make_learn,
     make_loss,
     make_optimisers,
     make_update,
@@ -60,8 +62,8 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
     # Create the environment, agent, exploration, optimisers and replay buffer
     env = make_env(cfg)
     actor, critic = make_actor(cfg, env, device), make_critic(cfg, env, device)
-    loss, target_update = make_loss(cfg, actor, critic, env)
     exploration, noise = make_exploration(cfg, actor, env, device)
+    loss, target_update = make_loss(cfg, exploration if cfg.agent.name in ON_POLICY else actor, critic, env)
     optim_actor, optim_critic = make_optimisers(cfg, loss)
     buffer = make_buffer(cfg, run_dir, device)
     base = env.base_env
@@ -79,14 +81,14 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
     )
     counters = load_checkpoint(run_dir, learner, cfg.checkpoint.keep_buffer) if resumed else Progress()
 
-    # Create the collector, the update step and the logger
+    # Create the collector, the update and learning steps and the logger
     collector = make_collector(cfg, env, exploration, counters.frames)
     update = make_update(cfg, loss, target_update, optim_actor, optim_critic)
+    learn = make_learn(cfg, loss, update, buffer, noise)
     log = RunLog(run_dir, resume_frames=counters.frames if resumed else None)
     if not resumed:
         log.text("config", "```\n" + OmegaConf.to_yaml(cfg, resolve=True) + "\n```")
 
-    steps_per_batch = cfg.collector.frames_per_batch // cfg.env.num_envs
     started = time.perf_counter()
     bar = tqdm(total=cfg.total_frames, initial=counters.frames, disable=not cfg.logger.progress_bar, unit="frame")
     last_checkpoint, episode_reward = counters.frames, "–"  # the last finished episode's, once there is one
@@ -94,14 +96,8 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
     for batch in collector:
         env_seconds = time.perf_counter() - clock
         counters.frames += batch.numel()
-        noise.step(steps_per_batch)
-        buffer.extend(batch.select(*TRANSITION_KEYS).reshape(-1))
         clock = time.perf_counter()
-        losses = []
-        if counters.frames >= cfg.collector.init_random_frames and len(buffer) >= cfg.buffer.batch_size:
-            for _ in range(max(1, round(batch.numel() * cfg.collector.updates_per_frame))):
-                losses.append(update(buffer.sample(), counters.updates))
-                counters.updates += 1
+        losses = learn(batch, counters)
         update_seconds = time.perf_counter() - clock
         scalars = batch_scalars(batch, losses, noise, env_seconds, update_seconds)
         counters.episodes += int(batch["next", "done"].sum())
@@ -185,10 +181,13 @@ def classical_controller(config) -> str:
 
 
 def _noise_scale(noise) -> float:
+    """The exploration noise's present scale: annealed σ (Gaussian), ε (OU), or PPO's learned σ."""
     for name in ("sigma", "eps"):
         value = getattr(noise, name, None)
         if isinstance(value, torch.Tensor):
             return value.float().mean().item()
+    if isinstance(noise, AddStateIndependentNormalScale):
+        return noise.state_independent_scale.detach().exp().mean().item()
     return float("nan")
 
 
