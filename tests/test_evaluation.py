@@ -307,9 +307,9 @@ def test_each_shipped_policy_loads_matches_its_metrics_and_has_the_documented_co
     path = shipped_policy(name)
     assert "actor" in torch.load(path, weights_only=True)
     policy = load_policy(path)
-    assert policy.label == f"ddpg {name}"
     # trained with the documented defaults (and its preset): the same keys and values as conf/ composes today
     documented = OmegaConf.to_container(compose_config("config", list(SHIPPED[name])), resolve=True)
+    assert policy.label == f"{documented['agent']['name']} {name}"
     assert OmegaConf.to_container(policy.config, resolve=True) == documented
     assert policy.file.frames == documented["total_frames"]
     metrics = json.loads(path.with_name(f"{name}_metrics.json").read_text())
