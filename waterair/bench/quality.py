@@ -12,8 +12,8 @@ measured in this one process, one after the other:
 * **ours, flat-Snell base**: the same with residual actions on flat-sea Snell instead of the
   quadrant back-projection, so that the agent must learn the tracking itself;
 * **sb3**: Stable-Baselines3 DDPG on our Gymnasium view with the same observation, sensor,
-  residual actions, reward, networks, learning rates, batch, discount, noise and updates per
-  frame, for ``sb3_frames`` frames (its wall time includes model construction), one link at a time;
+  residual actions, reward and networks, and ``agent=ddpg``'s learning rates, batch, discount, noise
+  and updates per frame, for ``sb3_frames`` frames (its wall time includes model construction), one link at a time;
 * **sb3, flat-Snell base**: the same on the flat-Snell residual interface, beside ours on it.
 
 Every greedy policy is scored with evaluation's own runner on the same 32 seas × 500 steps
@@ -110,7 +110,7 @@ def sb3(frames: int, overrides: list[str]) -> dict | None:
 
     from waterair.envs.gym import WaterAirGymEnv
 
-    cfg = compose_training([*POINT, *overrides, "env.compile_kernel=false"])
+    cfg = compose_training(["agent=ddpg", *POINT, *overrides, "env.compile_kernel=false"])
     start = time.perf_counter()
     env = WaterAirGymEnv(env_config(cfg), reward=Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True)))
     model = DDPG(

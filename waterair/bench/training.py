@@ -5,11 +5,11 @@
   eager and compiled, against the same networks and math written as bare PyTorch (tensors indexed
   from preallocated storage), with the eager update's breakdown (sample, loss, backward and
   optimiser steps, target update).
-* **train**: frames per second of ``train.py``'s loop on the default configuration (collector,
-  replay, updates at 0.25 per frame), from its own per-batch timings after the compile warm-up,
-  and the wall time of the whole run;
-* **sb3**: Stable-Baselines3 DDPG on our Gymnasium view at the same updates per frame, networks,
-  batch and learning rates, if ``stable_baselines3`` can be imported.
+* **train**: frames per second of ``train.py``'s loop on the default configuration (PPO) and with
+  ``agent=ddpg`` (collector, replay, updates at 0.25 per frame), from its own per-batch timings
+  after the compile warm-up, and the wall time of the whole run;
+* **sb3**: Stable-Baselines3 DDPG on our Gymnasium view at DDPG's updates per frame, networks,
+  batch and learning rates, if ``stable_baselines3`` can be imported; it is compared with our DDPG.
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ def _median_ms(fn, count: int) -> float:
 
 def bench_update(updates: int) -> dict:
     """Per-update milliseconds: our pipeline eager and compiled, its breakdown, and bare PyTorch."""
-    cfg = compose_training(["device=cpu", "env.compile_kernel=false"])
+    cfg = compose_training(["agent=ddpg", "device=cpu", "env.compile_kernel=false"])
     env = make_env(cfg)
     actor, critic = make_actor(cfg, env, "cpu"), make_critic(cfg, env, "cpu")
     loss, target_update = make_loss(cfg, actor, critic, env)
@@ -196,7 +196,7 @@ def bench_sb3(frames: int) -> dict | None:
 
     from waterair.envs.gym import WaterAirGymEnv
 
-    cfg = compose_training([])
+    cfg = compose_training(["agent=ddpg"])
     env = WaterAirGymEnv(max_steps=cfg.env.max_steps, seed=0)
     model = DDPG(
         "MlpPolicy",
@@ -224,9 +224,10 @@ def bench_training(updates: int, frames: int, sb3_frames: int) -> dict:
     record = {"benchmark": "training", "update": bench_update(updates)}
     record["train"] = bench_train(frames, [])
     record["train_eager"] = bench_train(frames, ["env.compile_kernel=false", "compile_update=false"])
+    record["train_ddpg"] = bench_train(frames, ["agent=ddpg"])
     record["sb3"] = bench_sb3(sb3_frames)
     if record["sb3"] is not None:
-        record["train_over_sb3"] = record["train"]["frames_per_s"] / record["sb3"]["frames_per_s"]
+        record["train_over_sb3"] = record["train_ddpg"]["frames_per_s"] / record["sb3"]["frames_per_s"]
     return record
 
 
@@ -240,12 +241,13 @@ def training_table(record: dict) -> str:
         f"| DDPG update, bare PyTorch | {u['bare_ms']:.2f} ms |",
         f"| ratio ours / bare (eager, compiled) | {u['ratio_eager']:.2f}, {u['ratio_compiled']:.2f} |",
         "| eager breakdown (ms) | " + ", ".join(f"{k} {v:.2f}" for k, v in u["breakdown_eager_ms"].items()) + " |",
-        f"| train.py frames/s (defaults) | {record['train']['frames_per_s']:,.0f} |",
-        f"| train.py frames/s (eager env and update) | {record['train_eager']['frames_per_s']:,.0f} |",
+        f"| train.py frames/s (defaults: PPO) | {record['train']['frames_per_s']:,.0f} |",
+        f"| train.py frames/s (PPO, eager env and update) | {record['train_eager']['frames_per_s']:,.0f} |",
+        f"| train.py frames/s (agent=ddpg) | {record['train_ddpg']['frames_per_s']:,.0f} |",
     ]
     if record["sb3"] is not None:
         lines.append(f"| SB3 DDPG frames/s | {record['sb3']['frames_per_s']:,.0f} |")
-        lines.append(f"| train.py / SB3 | {record['train_over_sb3']:.1f} |")
+        lines.append(f"| train.py DDPG / SB3 DDPG | {record['train_over_sb3']:.1f} |")
     else:
         lines.append("| SB3 DDPG | not installed |")
     return "\n".join(lines)
