@@ -68,7 +68,7 @@ def bench_update(updates: int) -> dict:
     cfg = compose_training(["agent=ddpg", "device=cpu", "env.compile_kernel=false"])
     env = make_env(cfg)
     actor, critic = make_actor(cfg, env, "cpu"), make_critic(cfg, env, "cpu")
-    loss, target_update = make_loss(cfg, actor, critic, env)
+    loss, target_update = make_loss(cfg, actor, None, critic, env)  # DDPG learns the actor itself
     optim_actor, optim_critic = make_optimisers(cfg, loss)
     with tempfile.TemporaryDirectory() as scratch:
         buffer = make_buffer(cfg, Path(scratch), "cpu")

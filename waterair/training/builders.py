@@ -67,18 +67,19 @@ def make_critic(cfg: DictConfig, env, device) -> ValueOperator:
     return build_critic(*sizes, cfg.critic.hidden, cfg.critic.activation).to(device)
 
 
-def make_loss(cfg: DictConfig, policy, critic, env):
+def make_loss(cfg: DictConfig, actor, exploration, critic, env):
     """``agent.loss`` and its target update (None for PPO, which keeps no target networks).
 
-    DDPG and TD3 take the deterministic actor and a TD(0) estimator at ``agent.gamma``; PPO takes the
-    stochastic ``policy`` and generalised advantage estimation at ``agent.gamma`` and ``agent.lmbda``.
+    DDPG and TD3 learn the deterministic ``actor`` with a TD(0) estimator at ``agent.gamma``; PPO
+    learns its stochastic ``exploration`` policy with generalised advantage estimation at
+    ``agent.gamma`` and ``agent.lmbda``.
     """
     if cfg.agent.name in ON_POLICY:
-        loss = instantiate(cfg.agent.loss)(policy, critic)
+        loss = instantiate(cfg.agent.loss)(exploration, critic)
         loss.make_value_estimator(ValueEstimators.GAE, gamma=cfg.agent.gamma, lmbda=cfg.agent.lmbda)
         return loss, None
     extra = {"action_spec": env.action_spec_unbatched} if cfg.agent.name == "td3" else {}
-    loss = instantiate(cfg.agent.loss)(policy, critic, **extra)
+    loss = instantiate(cfg.agent.loss)(actor, critic, **extra)
     loss.make_value_estimator(gamma=cfg.agent.gamma)
     return loss, SoftUpdate(loss, tau=cfg.agent.tau)
 

@@ -1,9 +1,9 @@
 """The training checkpoint: a policy file (``waterair.agents.checkpoint``) plus the learner's state.
 
 ``checkpoints/last.pt`` holds the policy entries (format tag, the greedy policy's weights,
-observation size, frames) that evaluation reads, and everything a resumed run needs: counters, the loss module
-(networks and target networks), exploration noise, optimisers and random-number states. It is
-written atomically; the replay buffer, when kept, is dumped next to it first.
+observation size, frames) that evaluation reads, and everything a resumed run needs: counters,
+the loss module (networks and target networks), exploration noise, optimisers and random-number
+states. It is written atomically; the replay buffer, when kept, is dumped next to it first.
 """
 
 from __future__ import annotations

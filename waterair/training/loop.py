@@ -21,7 +21,6 @@ from waterair.evaluation.metrics import METRICS, OUTAGE_FRACTION
 from waterair.evaluation.runner import compare_policies
 from waterair.evaluation.scenarios import Scenario
 from waterair.training.builders import (
-    ON_POLICY,
     env_config,
     make_actor,
     make_buffer,
@@ -63,7 +62,7 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
     env = make_env(cfg)
     actor, critic = make_actor(cfg, env, device), make_critic(cfg, env, device)
     exploration, noise = make_exploration(cfg, actor, env, device)
-    loss, target_update = make_loss(cfg, exploration if cfg.agent.name in ON_POLICY else actor, critic, env)
+    loss, target_update = make_loss(cfg, actor, exploration, critic, env)
     optim_actor, optim_critic = make_optimisers(cfg, loss)
     buffer = make_buffer(cfg, run_dir, device)
     base = env.base_env
