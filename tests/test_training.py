@@ -89,6 +89,18 @@ def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, extra):
     assert rows[0].startswith("frames,") and len(rows) == 1 + 4
 
 
+@pytest.mark.parametrize("target_kl,passes", [("null", None), ("1e-9", 1)])
+def test_ppo_passes_over_each_batch_until_the_policy_has_moved_target_kl(target_kl, passes, tmp_path):
+    cfg = compose_cfg("agent=ppo", "total_frames=1200", f"agent.target_kl={target_kl}")
+    metrics = train(cfg, tmp_path)
+    per_pass = cfg.collector.frames_per_batch // cfg.buffer.batch_size  # 6 minibatches of 64 in 400 frames
+    per_batch = round(cfg.collector.frames_per_batch * cfg.collector.updates_per_frame)  # 62: ten passes, rounded
+    learning_batches = 2  # the first of the three batches is the random start (collector.init_random_frames=400)
+    assert metrics["updates"] == learning_batches * (per_batch if passes is None else passes * per_pass)
+    kl = scalars(tmp_path)["loss/kl"]
+    assert len(kl) == learning_batches and all(value > 0 for _, value in kl)
+
+
 @pytest.mark.parametrize("weights", ["average", "last"])
 def test_the_saved_policy_is_the_averaged_or_the_last_actor(weights, tmp_path):
     cfg = compose_cfg("agent=ddpg", "total_frames=800", f"agent.policy_weights={weights}")

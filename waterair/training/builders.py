@@ -96,7 +96,7 @@ def make_exploration(cfg: DictConfig, actor, env, device) -> tuple[TensorDictMod
     spec = env.action_spec_unbatched.to(device)
     if cfg.agent.name in ON_POLICY:
         policy = make_gaussian_policy(actor, spec, cfg.noise.sigma_init).to(device)
-        return policy, policy.module[0].module[1]
+        return policy, policy.module[0].module[1]  # the learned scale
     if cfg.noise.name == "ou":
         noise = OrnsteinUhlenbeckProcessModule(
             spec=spec,
@@ -167,7 +167,8 @@ def make_update(cfg: DictConfig, loss, target_update, optim_actor, optim_critic)
     """One gradient step on a sampled batch; the actor steps every ``agent.policy_delay`` updates (TD3).
 
     PPO's step sums the clipped objective and the critic loss and clips the gradient norm at
-    ``agent.max_grad_norm``. The step returns the (actor, critic) losses as a detached ``[2]`` tensor.
+    ``agent.max_grad_norm``. The step returns the (actor, critic) losses as a detached ``[2]`` tensor,
+    PPO's with the approximate KL divergence from the collecting policy as a third entry.
     """
     if cfg.agent.name in ON_POLICY:
         params = [p for group in (optim_actor, optim_critic) for g in group.param_groups for p in g["params"]]
@@ -180,7 +181,8 @@ def make_update(cfg: DictConfig, loss, target_update, optim_actor, optim_critic)
             torch.nn.utils.clip_grad_norm_(params, cfg.agent.max_grad_norm)
             optim_actor.step()
             optim_critic.step()
-            return torch.stack((losses["loss_objective"], losses["loss_critic"])).detach()
+            kl = losses["kl_approx"].mean()  # how far this minibatch's policy moved from the collecting one
+            return torch.stack((losses["loss_objective"], losses["loss_critic"], kl)).detach()
 
         return torch.compile(update) if cfg.compile_update else update
 
@@ -213,7 +215,9 @@ def make_learn(cfg: DictConfig, loss, update, buffer: TensorDictReplayBuffer, no
     ``collector.updates_per_frame`` × its frames updates, none before
     ``collector.init_random_frames`` (uniform random actions). Off-policy: anneal the noise, store
     the batch's transitions, then sample each update from the whole replay. On-policy (PPO): the
-    batch alone, in minibatches without replacement, its advantages recomputed before each pass.
+    batch alone, in minibatches without replacement, its advantages recomputed before each pass, and
+    no further pass once a pass has moved the policy by more than ``agent.target_kl`` (mean
+    approximate KL from the policy that collected the batch; null: every pass).
     """
     per_batch = max(1, round(cfg.collector.frames_per_batch * cfg.collector.updates_per_frame))
     steps_per_batch = cfg.collector.frames_per_batch // cfg.env.num_envs
@@ -223,6 +227,7 @@ def make_learn(cfg: DictConfig, loss, update, buffer: TensorDictReplayBuffer, no
         keys = loss.tensor_keys
         stored = ("observation", "action", keys.sample_log_prob, keys.advantage, keys.value_target)
         per_pass = cfg.collector.frames_per_batch // batch_size
+        target_kl = cfg.agent.target_kl
 
         def learn_on_policy(batch: TensorDict, progress) -> list[torch.Tensor]:
             if progress.frames - batch.numel() < random_frames:  # random actions have no log-probability
@@ -230,6 +235,9 @@ def make_learn(cfg: DictConfig, loss, update, buffer: TensorDictReplayBuffer, no
             losses = []
             for index in range(per_batch):
                 if index % per_pass == 0:
+                    if index and target_kl is not None:  # one host synchronisation per pass
+                        if torch.stack(losses[-per_pass:])[:, 2].mean().item() > target_kl:
+                            break
                     with torch.no_grad():
                         loss.value_estimator(batch)
                     buffer.extend(batch.select(*stored).reshape(-1))  # the storage holds one batch

@@ -92,6 +92,8 @@ def _check_ppo(cfg: DictConfig) -> None:
     agent = cfg.agent
     check_range("agent.lmbda", agent.lmbda, 0.0, 1.0)
     check_range("agent.max_grad_norm", agent.max_grad_norm, 0.0, 1e6, low_open=True)
+    if agent.target_kl is not None:
+        check_range("agent.target_kl", agent.target_kl, 0.0, 10.0, low_open=True)
     check_range("agent.loss.clip_epsilon", agent.loss.clip_epsilon, 0.0, 1.0, low_open=True)
     check_range("agent.loss.critic_coeff", agent.loss.critic_coeff, 0.0, 1e6, low_open=True)
     if agent.policy_weights != "last":

@@ -149,8 +149,11 @@ def batch_scalars(batch, losses, noise, env_seconds: float, update_seconds: floa
     if done.any():
         scalars["train/episode_reward"] = nxt["episode_reward"][done].double().mean().item()
     if losses:
-        actor_loss, critic_loss = torch.stack(losses).double().mean(0).tolist()  # one host sync per batch
-        scalars["loss/actor"], scalars["loss/critic"] = actor_loss, critic_loss
+        means = torch.stack(losses).double().mean(0).tolist()  # one host sync per batch
+        scalars["loss/actor"], scalars["loss/critic"] = means[:2]
+        if len(means) > 2:  # PPO: the approximate KL from the collecting policy, and its passes
+            scalars["loss/kl"] = means[2]
+            scalars["train/updates"] = len(losses)
     return scalars
 
 
