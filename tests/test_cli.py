@@ -32,7 +32,7 @@ CASES = [
     ("train.py", "env.device=cuda", "env.device = 'cuda' is not available"),
     ("train.py", "resume={missing}", "does not exist"),
     ("train.py", "resume={tmp}", "is not a waterair run directory"),
-    ("train.py", "agent=ppo", "agent=ppo is not an option of agent; choose one of ddpg, td3"),
+    ("train.py", "agent=sac", "agent=sac is not an option of agent; choose one of ddpg, ppo, td3"),
     ("evaluate.py", "run={missing}", "is not a run directory"),
     ("evaluate.py", "checkpoint={random}", "is not a torch file"),
     ("evaluate.py", "checkpoint={truncated}", "is truncated or damaged"),
@@ -62,9 +62,9 @@ def test_a_sweep_is_checked_job_by_job_before_it_starts():
 
 
 def test_hydra_messages_become_one_line():
-    error = ValueError("In 'config': Could not find 'agent/ppo'\n\nAvailable options in 'agent':\n\tddpg\n\ttd3\n"
+    error = ValueError("In 'config': Could not find 'agent/sac'\n\nAvailable options in 'agent':\n\tddpg\n\tppo\n\ttd3\n"
                        "Config search path:\n\tprovider=hydra")  # fmt: skip
-    assert one_line(error) == "agent=ppo is not an option of agent; choose one of ddpg, td3"
+    assert one_line(error) == "agent=sac is not an option of agent; choose one of ddpg, ppo, td3"
     assert one_line(ValueError("Could not override 'env.wnd'.\nTo append use +env.wnd=3")).startswith(
         "env.wnd is not a config key"
     )
