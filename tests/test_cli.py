@@ -62,7 +62,8 @@ def test_a_sweep_is_checked_job_by_job_before_it_starts():
 
 
 def test_hydra_messages_become_one_line():
-    error = ValueError("In 'config': Could not find 'agent/sac'\n\nAvailable options in 'agent':\n\tddpg\n\tppo\n\ttd3\n"
+    error = ValueError("In 'config': Could not find 'agent/sac'\n\n"
+                       "Available options in 'agent':\n\tddpg\n\tppo\n\ttd3\n"
                        "Config search path:\n\tprovider=hydra")  # fmt: skip
     assert one_line(error) == "agent=sac is not an option of agent; choose one of ddpg, ppo, td3"
     assert one_line(ValueError("Could not override 'env.wnd'.\nTo append use +env.wnd=3")).startswith(
