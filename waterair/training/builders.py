@@ -131,7 +131,9 @@ def make_optimisers(cfg: DictConfig, loss):
 def make_buffer(cfg: DictConfig, run_dir: Path, device) -> TensorDictReplayBuffer:
     """Uniform replay over flattened transitions; in memory or memory-mapped on disk.
 
-    On-policy (PPO): the last collected batch alone, sampled in minibatches without replacement.
+    On-policy (PPO): the last collected batch alone, sampled in whole minibatches without
+    replacement; the rows a pass cannot fill a minibatch with wait for the next pass's shuffle, so
+    every pass starts on a fresh permutation.
     """
     on_policy = cfg.agent.name in ON_POLICY
     capacity = cfg.collector.frames_per_batch if on_policy else cfg.buffer.capacity
@@ -140,7 +142,7 @@ def make_buffer(cfg: DictConfig, run_dir: Path, device) -> TensorDictReplayBuffe
         storage = LazyMemmapStorage(capacity, scratch_dir=str(scratch), existsok=True)
     else:
         storage = LazyTensorStorage(capacity, device=device)
-    sampler = SamplerWithoutReplacement() if on_policy else None
+    sampler = SamplerWithoutReplacement(drop_last=True) if on_policy else None
     return TensorDictReplayBuffer(storage=storage, sampler=sampler, batch_size=cfg.buffer.batch_size)
 
 
@@ -215,9 +217,10 @@ def make_learn(cfg: DictConfig, loss, update, buffer: TensorDictReplayBuffer, no
     ``collector.updates_per_frame`` × its frames updates, none before
     ``collector.init_random_frames`` (uniform random actions). Off-policy: anneal the noise, store
     the batch's transitions, then sample each update from the whole replay. On-policy (PPO): the
-    batch alone, in minibatches without replacement, its advantages recomputed before each pass, and
-    no further pass once a pass has moved the policy by more than ``agent.target_kl`` (mean
-    approximate KL from the policy that collected the batch; null: every pass).
+    batch alone, in passes of ``frames_per_batch // batch_size`` minibatches (that many updates
+    rounded to whole passes), its advantages recomputed before each pass, and no further pass once a
+    pass has moved the policy by more than ``agent.target_kl`` (mean approximate KL from the policy
+    that collected the batch; null: every pass).
     """
     per_batch = max(1, round(cfg.collector.frames_per_batch * cfg.collector.updates_per_frame))
     steps_per_batch = cfg.collector.frames_per_batch // cfg.env.num_envs
@@ -227,22 +230,23 @@ def make_learn(cfg: DictConfig, loss, update, buffer: TensorDictReplayBuffer, no
         keys = loss.tensor_keys
         stored = ("observation", "action", keys.sample_log_prob, keys.advantage, keys.value_target)
         per_pass = cfg.collector.frames_per_batch // batch_size
+        passes = max(1, round(per_batch / per_pass))
         target_kl = cfg.agent.target_kl
 
         def learn_on_policy(batch: TensorDict, progress) -> list[torch.Tensor]:
             if progress.frames - batch.numel() < random_frames:  # random actions have no log-probability
                 return []
-            losses = []
-            for index in range(per_batch):
-                if index % per_pass == 0:
-                    if index and target_kl is not None:  # one host synchronisation per pass
-                        if torch.stack(losses[-per_pass:])[:, 2].mean().item() > target_kl:
-                            break
-                    with torch.no_grad():
-                        loss.value_estimator(batch)
-                    buffer.extend(batch.select(*stored).reshape(-1))  # the storage holds one batch
-                losses.append(update(buffer.sample(), progress.updates))
-                progress.updates += 1
+            losses: list[torch.Tensor] = []
+            for index in range(passes):
+                if index and target_kl is not None:  # one host synchronisation per pass
+                    if torch.stack(losses[-per_pass:])[:, 2].mean().item() > target_kl:
+                        break
+                with torch.no_grad():
+                    loss.value_estimator(batch)
+                buffer.extend(batch.select(*stored).reshape(-1))  # the storage holds one batch
+                for _ in range(per_pass):
+                    losses.append(update(buffer.sample(), progress.updates))
+                    progress.updates += 1
             return losses
 
         return learn_on_policy
