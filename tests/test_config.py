@@ -99,6 +99,8 @@ def test_each_agent_option_sets_its_learning_rates_and_update_schedule():
         (["agent=ppo", "noise.sigma_end=0.01"], r"^agent=ppo learns its action noise.*sigma_end = 0.01"),
         (["agent=ppo", "buffer.batch_size=2000"], r"^buffer.batch_size = 2000 is out of range"),
         (["agent=ppo", "agent.loss.clip_epsilon=0"], r"^agent.loss.clip_epsilon = 0"),
+        (["agent=ppo", "agent.loss.loss_critic_type=l3"], r"^agent.loss.loss_critic_type = 'l3' is not allowed"),
+        (["agent=ppo", "agent.loss.entropy_bonus=1e-2"], r"^agent.loss.entropy_bonus = 0.01 must be true or false"),
         (["agent=ppo", "checkpoint.keep_buffer=true"], r"^checkpoint.keep_buffer = true is not allowed with agent=ppo"),
     ],
 )

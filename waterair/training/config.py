@@ -24,6 +24,8 @@ LOSSES = {
     "ppo": "torchrl.objectives.ClipPPOLoss",
 }
 """The loss class each ``agent.name`` instantiates (``agent.loss._target_``)."""
+PPO_CRITIC_LOSSES = ("l1", "l2", "smooth_l1")
+"""``ClipPPOLoss``'s ``loss_critic_type`` values."""
 POLICY_WEIGHTS = ("average", "last")
 """What the saved and evaluated policy is: the actor's Polyak average (its target network), or its last iterate."""
 NOISES = ("gaussian", "ou")
@@ -96,6 +98,10 @@ def _check_ppo(cfg: DictConfig) -> None:
         check_range("agent.target_kl", agent.target_kl, 0.0, 10.0, low_open=True)
     check_range("agent.loss.clip_epsilon", agent.loss.clip_epsilon, 0.0, 1.0, low_open=True)
     check_range("agent.loss.critic_coeff", agent.loss.critic_coeff, 0.0, 1e6, low_open=True)
+    check_choice("agent.loss.loss_critic_type", agent.loss.loss_critic_type, PPO_CRITIC_LOSSES)
+    for flag in ("entropy_bonus", "normalize_advantage"):
+        if not isinstance(agent.loss[flag], bool):
+            raise ValueError(f"agent.loss.{flag} = {agent.loss[flag]!r} must be true or false")
     if agent.policy_weights != "last":
         raise ValueError("agent.policy_weights = 'average' is not allowed with agent=ppo (no target actor); use last")
     if cfg.noise.name != "gaussian" or cfg.noise.sigma_end != cfg.noise.sigma_init:
