@@ -10,6 +10,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
+from waterair.envs.controllers import CONTROLLERS
 from waterair.training import train, validate
 from waterair.training.resume import plan_resume
 
@@ -46,7 +47,7 @@ def summary(cfg: DictConfig, run_dir: Path, metrics: dict[str, float], seconds: 
     """The closing lines: where the run is, what it did, how the greedy policy scored, what to run next."""
     minutes, rest = divmod(round(seconds), 60)
     ratio = {label: metrics[f"{label}/ratio_to_ub"] for label in ("agent", "flat_snell", "straight_facing")}
-    classical = next((name for name in ("aoa_tracker", "intensity_dither") if f"{name}/ratio_to_ub" in metrics), None)
+    classical = next((name for name in CONTROLLERS if f"{name}/ratio_to_ub" in metrics), None)
     beside = f"{classical} {metrics[f'{classical}/ratio_to_ub']:.3f}, " if classical else ""
     return "\n".join(
         [

@@ -116,4 +116,10 @@ class IntensityDither(PointingPolicy):
 
 
 CONTROLLERS = {cls.name: cls for cls in (AoATracker, IntensityDither)}
-"""Classical controllers by name."""
+"""Classical controllers by name, the one that senses more first."""
+
+
+def controller_for(observation_extras) -> str:
+    """The name of the best classical controller a policy with these observation parts can be
+    compared with: the first of :data:`CONTROLLERS` whose ``required_extras`` it has."""
+    return next(name for name, cls in CONTROLLERS.items() if set(cls.required_extras) <= set(observation_extras))

@@ -17,6 +17,7 @@ from tqdm import tqdm
 
 from waterair.core.devices import resolve_device
 from waterair.core.files import atomic_write_json, atomic_write_text
+from waterair.envs.controllers import controller_for
 from waterair.evaluation.metrics import METRICS, OUTAGE_FRACTION
 from waterair.evaluation.runner import compare_policies
 from waterair.evaluation.scenarios import Scenario
@@ -39,7 +40,7 @@ from waterair.training.run_log import RunLog
 
 FINAL_POLICIES = {"straight_facing": "straight_facing", "flat_snell": "flat_snell"}
 """Baselines the closing evaluation scores the trained agent against (label → baseline name), with
-the classical controller of the agent's sensing (:func:`classical_controller`)."""
+the classical controller of the agent's sensing (:func:`waterair.envs.controllers.controller_for`)."""
 
 
 def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = print) -> dict[str, float]:
@@ -167,19 +168,13 @@ def final_evaluation(cfg: DictConfig, actor) -> dict[str, float]:
     point = ((float(cfg.env.wind), float(cfg.env.offset_ratio), float(cfg.env.offset_azimuth_deg)),)
     scenario = Scenario("train", "training point", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
     config = env_config(cfg)
-    references = {**FINAL_POLICIES, (controller := classical_controller(config)): controller}
+    references = {**FINAL_POLICIES, (controller := controller_for(config.observation_extras)): controller}
     # The references point in absolute tilts: a residual action's range need not reach their pointing.
     # Same seed, same seas: the two rollouts share the upper bound.
     results = compare_policies(config.replace(action_mode="absolute"), references, scenario)
     results.update(compare_policies(config, {"agent": actor}, scenario))
     keep = (*METRICS, "mean_gain_lo", "mean_gain_hi")
     return {f"{label}/{key}": values[key] for label, values in results.items() for key in keep}
-
-
-def classical_controller(config) -> str:
-    """The classical controller with the agent's sensing: the quadrant back-projection where the
-    observation has the spot, else intensity-only dithering."""
-    return "aoa_tracker" if {"spot", "spot_valid"} <= set(config.observation_extras) else "intensity_dither"
 
 
 def _noise_scale(noise) -> float:
