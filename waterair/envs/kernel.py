@@ -20,7 +20,14 @@ import torch
 
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
 from waterair.envs.rewards import Reward
-from waterair.envs.sensors import PACKET_PARTS, Sensor, back_projection, intensity_feature, spot_position
+from waterair.envs.sensors import (
+    PACKET_PARTS,
+    Sensor,
+    back_projection,
+    intensity_feature,
+    packet_sizes,
+    spot_position,
+)
 from waterair.physics.channel import Transceiver, channel_gain, gain_upper_bound, pointing
 from waterair.physics.optics import unit_vector
 from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path
@@ -119,10 +126,10 @@ def base_tilts(c: StepConstants, state: dict) -> torch.Tensor:
     point, tx, rx = state["flat_point"], state["tx_position"], state["rx_position"]
     if c.residual_base == "flat_snell":
         return flat_tilts(point, tx, rx)
-    delivered = state["packets"][:, -1]  # tx (3), rx (3), intensity (1), spot (2), spot_valid (1), history
+    delivered = unpack(state["packets"][:, -1])
     flat = unit_vector(point - tx), unit_vector(point - rx)
-    seen = delivered[:, 9] > 0.5
-    tx_dir, rx_dir = back_projection(delivered[:, 3:6], delivered[:, 7:9], seen, tx, rx, flat, c.optics.half_fov)
+    seen = delivered["spot_valid"][:, 0] > 0.5
+    tx_dir, rx_dir = back_projection(delivered["rx_pointing"], delivered["spot"], seen, tx, rx, flat, c.optics.half_fov)
     return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
 
 
@@ -195,6 +202,12 @@ def pack(packet: dict, history: torch.Tensor) -> torch.Tensor:
     return torch.cat([packet[name] for name in PACKET_PARTS[:-1]] + [history], dim=-1)
 
 
+def unpack(packet: torch.Tensor) -> dict[str, torch.Tensor]:
+    """The parts of one packet ``[n, width]`` by name (the inverse of :func:`pack`)."""
+    history_length = packet.shape[-1] - sum(packet_sizes(0))
+    return dict(zip(PACKET_PARTS, packet.split(packet_sizes(history_length), dim=-1), strict=True))
+
+
 def conclude(c: StepConstants, state: dict, moved: dict, solution: tuple, noise):
     """The new state and the step's outputs, given the gimbals ``moved`` and the path ``solution``
     (P ``[B, 3]``, slopes ``[B, 2]``, converged ``[B]``, iterations ``[B]``)."""
@@ -261,13 +274,11 @@ def observe(c: StepConstants, state: dict) -> torch.Tensor:
     geometry), which is never late. An environment keeps the columns of the parts its layout asks
     for (:func:`observation_columns`), outside the graph, so that every preset shares one graph.
     """
-    delivered = state["packets"][:, -1]
-    h = state["history"].shape[-1]
+    delivered = unpack(state["packets"][:, -1])
     time = (state["time"] / c.episode_seconds).unsqueeze(-1)
     geometry = (state["rx_position"] - state["tx_position"])[:, :2] / c.vertical_distance
-    # packet: tx (3), rx (3), intensity (1), spot (2), spot_valid (1), history (h)
-    parts = (delivered[:, :7], time, delivered[:, 7 : 10 + h], state["action_history"].flatten(1), geometry)
-    return torch.cat(parts, dim=-1)
+    late = [delivered[name] for name in PACKET_PARTS]
+    return torch.cat((*late[:3], time, *late[3:], state["action_history"].flatten(1), geometry), dim=-1)
 
 
 def observation_columns(config: EnvConfig) -> list[int] | None:
