@@ -2,8 +2,9 @@
 
 At the end of a multirun :class:`SweepSummary` writes, at the sweep root, ``summary.csv`` (one row
 per job: its overrides and final metrics), ``summary.md`` (the per-job table of the greedy ratio to
-the upper bound beside flat-sea Snell's, and the spread) and ``learning_curves.png`` (the training
-links' ratio to the upper bound against frames: the mean over jobs and their range).
+the upper bound beside the classical controller's, flat-sea Snell's and straight facing's, and the
+spread) and ``learning_curves.png`` (the training links' ratio to the upper bound against frames:
+the mean over jobs and their range).
 """
 
 from __future__ import annotations
@@ -17,9 +18,8 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from waterair.core.files import atomic_write_csv, atomic_write_text
+from waterair.envs.controllers import CONTROLLERS
 
-CLASSICAL = ("aoa_tracker", "intensity_dither")
-"""The classical controller the closing evaluation scored beside the agent (the one of its sensing)."""
 CURVE_KEY = "train/gain_ratio_ub"
 """The column of each job's ``metrics.csv`` the learning curves plot."""
 
@@ -50,21 +50,23 @@ def summarise(root: Path) -> list[dict]:
 
 
 def summary_table(rows: list[dict]) -> str:
-    """A Markdown table: per job, the greedy agent's, the classical controller's and flat-sea Snell's ratio
-    to UB (the closing evaluation's, on the same seas), and the agent's spread over jobs."""
-    classical = [name for name in CLASSICAL if any(f"{name}/ratio_to_ub" in row for row in rows)]
+    """A Markdown table: per job, the greedy agent's, the classical controller's, flat-sea Snell's and
+    straight facing's ratio to UB (the closing evaluation's, on the same seas at the job's own wind and
+    offset), and the agent's spread over jobs."""
+    classical = [name for name in CONTROLLERS if any(f"{name}/ratio_to_ub" in row for row in rows)]
     lines = [
         "| job | overrides | frames | training (s) | agent ratio to UB | "
         + "".join(f"{name} | " for name in classical)
-        + "flat-Snell |",
-        "|---" * (6 + len(classical)) + "|",
+        + "flat-Snell | straight facing |",
+        "|---" * (7 + len(classical)) + "|",
     ]
     for row in rows:
         seconds = row.get("train_seconds")
         references = "".join(_ratio(row, name) + " | " for name in classical)
         lines.append(
             f"| {row['job']} | `{row['overrides']}` | {row['frames']} | {'–' if seconds is None else f'{seconds:.0f}'} "
-            f"| {row['agent/ratio_to_ub']:.3f} | {references}{row['flat_snell/ratio_to_ub']:.3f} |"
+            f"| {row['agent/ratio_to_ub']:.3f} | {references}{_ratio(row, 'flat_snell')} | "
+            f"{_ratio(row, 'straight_facing')} |"
         )
     ratios = [row["agent/ratio_to_ub"] for row in rows]
     lines += [
