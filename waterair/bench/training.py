@@ -8,8 +8,9 @@
 * **train**: frames per second of ``train.py``'s loop on the default configuration (PPO) and with
   ``agent=ddpg`` (collector, replay, updates at 0.25 per frame), from its own per-batch timings
   after the compile warm-up, and the wall time of the whole run;
-* **sb3**: Stable-Baselines3 DDPG on our Gymnasium view at DDPG's updates per frame, networks,
-  batch and learning rates, if ``stable_baselines3`` can be imported; it is compared with our DDPG.
+* **sb3**: Stable-Baselines3 DDPG on our Gymnasium view of the same environment, at DDPG's updates
+  per frame, networks, batch and learning rates, if ``stable_baselines3`` can be imported; it is
+  compared with our DDPG.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import torch
 from hydra import compose, initialize_config_dir
 from torch import nn
 
+from waterair.bench.sb3 import sb3_ddpg
 from waterair.training.builders import (
     TRANSITION_KEYS,
     make_actor,
@@ -186,35 +188,12 @@ def bench_train(frames: int, overrides: list[str]) -> dict:
 
 
 def bench_sb3(frames: int) -> dict | None:
-    """Stable-Baselines3 DDPG on :class:`waterair.envs.gym.WaterAirGymEnv`, matched to the defaults."""
-    try:
-        from stable_baselines3 import DDPG
-        from stable_baselines3.common.noise import NormalActionNoise
-    except ImportError:
+    """Stable-Baselines3 DDPG (:func:`waterair.bench.sb3.sb3_ddpg`) on one link of the environment
+    ``agent=ddpg`` trains on, timed over ``frames`` frames after a warm-up past its first updates."""
+    model = sb3_ddpg(compose_training(["agent=ddpg"]))
+    if model is None:
         return None
-    import numpy as np
-
-    from waterair.envs.gym import WaterAirGymEnv
-
-    cfg = compose_training(["agent=ddpg"])
-    env = WaterAirGymEnv(max_steps=cfg.env.max_steps, seed=0)
-    model = DDPG(
-        "MlpPolicy",
-        env,
-        learning_rate=cfg.critic.lr,
-        buffer_size=cfg.buffer.capacity,
-        learning_starts=1000,
-        batch_size=cfg.buffer.batch_size,
-        tau=cfg.agent.tau,
-        gamma=cfg.agent.gamma,
-        train_freq=(4, "step"),  # 0.25 updates per frame
-        gradient_steps=1,
-        action_noise=NormalActionNoise(np.zeros(4), 0.1 * np.ones(4)),
-        policy_kwargs={"net_arch": list(cfg.actor.hidden)},
-        device="cpu",
-        seed=0,
-    )
-    model.learn(1000 + 2000)  # warm-up past learning_starts
+    model.learn(3000)
     start = time.perf_counter()
     model.learn(frames, reset_num_timesteps=False)
     return {"frames": frames, "frames_per_s": frames / (time.perf_counter() - start)}
