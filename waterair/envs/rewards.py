@@ -45,7 +45,8 @@ class Reward:
     the environment produces (I ≈ 0 misaligned to I ≈ 1-2 aligned, see docs/environment.md) the
     three terms span comparable ranges on I in [0.05, 2] (ln(10 I + 1): 0.4 → 3.0, log10(100 I):
     0.7 → 2.3, exp(0.7 I): 1.0 → 4.1), so none dominates; R(0) = 0.1 (0 − 1 + 1) = 0, and gain 0.1
-    keeps per-step rewards in about [0, 0.9], a scale that suits a critic with a small discount (the paper: 0.2).
+    keeps the LE reward in about [0, 0.9], a scale that suits a critic with a small discount (the paper: 0.2);
+    the pointing term takes ``pointing`` per beam width of misalignment off it (below 0 far from the path).
     """
 
     name: str = "le"
