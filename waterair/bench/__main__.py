@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     quality.add_argument(
         "--flat-budgets", type=int, nargs="+", default=[40000, 80000, 160000], help="frames, flat-Snell base runs"
     )
-    quality.add_argument("--sb3-frames", type=int, default=40_000, help="Stable-Baselines3 DDPG frames")
+    quality.add_argument("--sb3-frames", type=int, default=80_000, help="Stable-Baselines3 DDPG frames at most")
     quality.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
     totals = sub.add_parser("summary", help="print the speed targets as ratios from the suites' JSON files")
     totals.add_argument("folder", type=Path, nargs="?", default=Path("outputs/bench"))
