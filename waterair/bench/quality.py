@@ -6,11 +6,13 @@ measured in this one process, one after the other:
 
 * **ours**: ``train()`` with the defaults at that one point, for growing budgets (``budgets``
   frames, each a fresh run from scratch; the first that reaches the target counts). Its time is the
-  whole run (environment construction, compiles and training) without the closing evaluation. A
-  budget within ``collector.init_random_frames`` (16,000) makes no update: its policy is the zero
-  residual, i.e. the base controller, which is the pipeline's starting point;
+  whole run (environment construction, compiles and training) without the closing evaluation. Its
+  first policy is the zero residual, i.e. the base controller, so a one-batch budget (1,600
+  frames) measures how soon the pipeline stands where it starts;
 * **ours, flat-Snell base**: the same with residual actions on flat-sea Snell instead of the
   quadrant back-projection, so that the agent must learn the tracking itself;
+* **ours, eager**: both again with the step and the update eager (:data:`EAGER`), after the
+  compiled runs;
 * **sb3**: Stable-Baselines3 DDPG on our Gymnasium view with the same observation, sensor,
   residual actions, reward and networks, and ``agent=ddpg``'s learning rates, batch, discount, noise
   and updates per frame, one link at a time; one run, scored every :data:`SB3_CHUNK` frames until
@@ -43,6 +45,15 @@ POINT = [
     "env.wind_direction_range=null",
 ]
 """The S1 point (12 m/s, 10 % offset, drone at azimuth 0, wind from 0) with the ideal sensor."""
+EAGER = ["env.compile_kernel=false", "compile_update=false"]
+"""Our pipeline without its compiles: a short run does not pay them back."""
+PAIRS = (
+    ("sb3", "ours"),
+    ("sb3", "ours_eager"),
+    ("sb3_flat_base", "ours_flat_base"),
+    ("sb3_flat_base", "ours_flat_base_eager"),
+)
+"""(theirs, ours) pipelines whose times to the target are compared on the same interface."""
 SB3_CHUNK = 5_000
 """Frames between two scorings of the Stable-Baselines3 run."""
 SCENARIO = Scenario("S1", "time to quality", None, ((12.0, 0.1, 0.0),), realisations=32, steps=500, seed=12345)
@@ -106,9 +117,11 @@ def bench_quality(budgets: list[int], flat_budgets: list[int], sb3_frames: int, 
     record = {"benchmark": "quality", "target": target, "scenario": "S1 point, 32 seas x 500 steps, seed 12345"}
     record["ours"] = ours(budgets, target, [])
     record["ours_flat_base"] = ours(flat_budgets, target, FLAT_BASE)
+    record["ours_eager"] = ours(budgets, target, EAGER)
+    record["ours_flat_base_eager"] = ours(flat_budgets, target, [*FLAT_BASE, *EAGER])
     record["sb3"] = sb3(sb3_frames, SB3_CHUNK, target, [])
     record["sb3_flat_base"] = sb3(sb3_frames, SB3_CHUNK, target, FLAT_BASE)
-    for theirs, mine in (("sb3", "ours"), ("sb3_flat_base", "ours_flat_base")):
+    for theirs, mine in PAIRS:
         if record[theirs] is None or record[mine]["seconds_to_target"] is None:
             continue
         reached = record[theirs]["seconds_to_target"]
@@ -119,10 +132,10 @@ def bench_quality(budgets: list[int], flat_budgets: list[int], sb3_frames: int, 
 
 def quality_table(record: dict) -> str:
     lines = ["| pipeline | frames | seconds | greedy ratio to UB |", "|---|---|---|---|"]
-    for name in ("ours", "ours_flat_base", "sb3", "sb3_flat_base"):
+    for name in ("ours", "ours_flat_base", "ours_eager", "ours_flat_base_eager", "sb3", "sb3_flat_base"):
         for run in (record[name] or {"runs": []})["runs"]:
             lines.append(f"| {name} | {run['frames']:,} | {run['seconds']:.0f} | {run['ratio_to_ub']:.3f} |")
-    for theirs, mine in (("sb3", "ours"), ("sb3_flat_base", "ours_flat_base")):
+    for theirs, mine in PAIRS:
         for suffix, says in (("", ""), ("_at_least", "at least ")):
             if f"{theirs}_over_{mine}{suffix}" in record:
                 ratio = record[f"{theirs}_over_{mine}{suffix}"]
