@@ -135,10 +135,13 @@ def test_iteration_cap_flags_paths_invalid_never_nan(default_positions):
     offset=st.floats(0.0, 1.0),
     seed=st.integers(0, 2**31 - 1),
     method=st.sampled_from(["newton", "newton_fixed", "centroid"]),
+    spectrum=st.sampled_from(["jonswap", "elfouhaily"]),
 )
-def test_no_nan_or_inf_for_any_sea(wind, fetch, offset, seed, method):
+def test_no_nan_or_inf_for_any_sea(wind, fetch, offset, seed, method, spectrum):
     tx, rx = LinkGeometry(offset_ratio=offset).positions(torch.float32)
-    surface = WaveSurface.sample(SeaState(wind=wind, fetch=fetch, n_freq=16, n_dir=8), 16, seed=seed)
+    sea = SeaState(wind=wind, fetch=fetch, n_freq=16, n_dir=8, n_wavenumbers=16, spectrum=spectrum)
+    surface = WaveSurface.sample(sea, 16, seed=seed)
+    assert torch.isfinite(surface.amplitude).all() and torch.isfinite(surface.unresolved).all()
     options = CentroidOptions(pixels=5, max_passes=6) if method == "centroid" else None
     path = solve_path(surface, tx, rx, 12.3, method=method, options=options)
     for name in ("point", "departure", "arrival", "normal", "theta1", "theta2", "d_water", "d_air"):

@@ -67,7 +67,7 @@ def test_amplitudes_carry_the_bin_energy(n_dir, amplitude, factor):
     edges = sea.frequency_bins(torch.float64)
     omega, d_omega = 0.5 * (edges[1:] + edges[:-1]), edges[1:] - edges[:-1]
     a = sea.amplitudes(omega, d_omega)
-    torch.testing.assert_close(0.5 * (a**2).sum(-1), factor * sea.spectrum(omega) * d_omega)
+    torch.testing.assert_close(0.5 * (a**2).sum(-1), factor * sea.frequency_spectrum(omega) * d_omega)
 
 
 def test_flat_sea_has_zero_amplitudes():
@@ -96,3 +96,29 @@ def test_bad_sea_parameters_name_key_value_and_range(kwargs, key):
     assert message.startswith(f"{key} = ")
     assert repr(next(iter(kwargs.values()))) in message
     assert "allowed" in message or "choose one of" in message
+
+
+def test_paper_sea_is_sampled_bit_for_bit_as_the_first_release():
+    """The JONSWAP sea (env/spectrum=paper) keeps the first release's draws and arithmetic exactly:
+    equal-width bins over [0.6, 6] ω_p, one uniform jitter per bin, then uniform phases, each
+    amplitude sqrt(2 S(ω) w Δω) with the spreading weights normalised per frequency."""
+    from waterair.physics.surface import WaveSurface
+
+    sea = SeaState(wind=9.0, fetch=3e4, n_freq=12, n_dir=5)
+    got = WaveSurface.sample(sea, 3, seed=11, dtype=torch.float64)
+
+    generator = torch.Generator().manual_seed(11)
+    omega_p = 22.0 * (G**2 / (9.0 * 3e4)) ** (1.0 / 3.0)
+    edges = (torch.linspace(0.6, 6.0, 13, dtype=torch.float64) * omega_p).expand(3, 13)
+    width = edges[:, 1:] - edges[:, :-1]
+    omega = edges[:, :-1] + torch.rand(3, 12, generator=generator, dtype=torch.float64) * width
+    theta = -math.pi / 2 + (torch.arange(5, dtype=torch.float64) + 0.5) * (math.pi / 5)
+    weights = spreading(omega.unsqueeze(-1), theta, omega_p) * (math.pi / 5)
+    weights = weights / weights.sum(-1, keepdim=True)
+    amplitude = torch.sqrt((2.0 * jonswap(omega, 9.0, 3e4) * width).unsqueeze(-1) * weights)
+    phase = 2.0 * math.pi * torch.rand(3, 60, generator=generator, dtype=torch.float64)
+    wavenumber = (omega**2 / G).unsqueeze(-1)
+    assert torch.equal(got.omega, omega.unsqueeze(-1).expand(3, 12, 5).reshape(3, -1))
+    assert torch.equal(got.amplitude, amplitude.reshape(3, -1))
+    assert torch.equal(got.kx, (wavenumber * torch.cos(theta)).reshape(3, -1))
+    assert torch.equal(got.phase, phase)

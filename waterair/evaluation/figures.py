@@ -26,7 +26,7 @@ def plot_spectrum(sea: SeaState, path: Path) -> Path:
     """S(ω) against ω with the peak ω_p and the simulated band marked (paper Fig. 2a)."""
     omega = torch.linspace(0.05, 4.0 * sea.omega_p, 800, dtype=torch.float64)
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.plot(omega, sea.spectrum(omega), color="tab:blue", label="JONSWAP S(ω)")
+    ax.plot(omega, sea.frequency_spectrum(omega), color="tab:blue", label="JONSWAP S(ω)")
     ax.axvline(sea.omega_p, color="tab:red", linestyle="--", label=f"ω_p = {sea.omega_p:.2f} rad/s")
     low, high = sea.omega_band
     ax.axvspan(low, min(high, float(omega[-1])), color="tab:gray", alpha=0.12, label="simulated band")
@@ -46,7 +46,7 @@ def plot_directional_spectrum(sea: SeaState, path: Path) -> Path:
     omega = torch.linspace(0.3 * sea.omega_p, 3.0 * sea.omega_p, 120, dtype=torch.float64)
     theta = torch.linspace(-math.pi / 2, math.pi / 2, 90, dtype=torch.float64)
     w, th = torch.meshgrid(omega, theta, indexing="ij")
-    values = sea.spectrum(w) * spreading(w, th, sea.omega_p)
+    values = sea.frequency_spectrum(w) * spreading(w, th, sea.omega_p)
     fig = plt.figure(figsize=(7, 5))
     ax = fig.add_subplot(projection="3d")
     ax.plot_surface(w.numpy(), torch.rad2deg(th).numpy(), values.numpy(), cmap="viridis", linewidth=0)

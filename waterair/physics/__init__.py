@@ -18,15 +18,18 @@ from waterair.physics.channel import (
     pointing,
 )
 from waterair.physics.paths import CentroidOptions, NewtonOptions, PathSolution, flat_sea_point, solve_path
-from waterair.physics.sea import SeaState, jonswap, spreading
+from waterair.physics.paths.census import RefractionPoints, refraction_points
+from waterair.physics.sea import MeanSquareSlope, SeaState, cox_munk, elevation_spectrum, jonswap, spreading
 from waterair.physics.surface import SurfaceSample, WaveSurface
 
 __all__ = [
     "CentroidOptions",
     "ChannelGain",
     "LinkGeometry",
+    "MeanSquareSlope",
     "NewtonOptions",
     "PathSolution",
+    "RefractionPoints",
     "SeaState",
     "SurfaceSample",
     "Transceiver",
@@ -34,10 +37,13 @@ __all__ = [
     "calm_sea_gain",
     "calm_sea_gains",
     "channel_gain",
+    "cox_munk",
+    "elevation_spectrum",
     "flat_sea_point",
     "gain_upper_bound",
     "jonswap",
     "pointing",
+    "refraction_points",
     "solve_path",
     "spreading",
 ]

@@ -1,9 +1,12 @@
 """Harmonic wave surface: a batch of independent sea realisations (docs/model.md §2, paper eq. (9)).
 
-    η(x, y, t) = Σ_k a_k cos(ω_k t − kx_k x − ky_k y + ε_k),   |k| = ω² / g (deep water)
+    η(x, y, t) = Σ_k a_k cos(ω_k t − kx_k x − ky_k y + ε_k)
 
-Each batch element carries its own jittered frequencies and random phases, so one tensor
-operation evaluates B different seas. Positions are in metres, time in seconds.
+with deep-water waves |k| = ω²/g for the paper's sea and capillary-gravity waves
+ω² = g|k|(1 + (|k|/k_m)²) for the measured-slope sea. Each batch element carries its own jittered
+frequencies (or wavenumbers) and random phases, so one tensor operation evaluates B different seas,
+and its unresolved slope covariance (the waves beyond the cutoff, docs/model.md §1.3). Positions
+are in metres, time in seconds.
 """
 
 from __future__ import annotations
@@ -16,7 +19,8 @@ import torch
 from tensordict import TensorClass
 
 from waterair.core.validation import check_int
-from waterair.physics.sea import GRAVITY, SeaState
+from waterair.physics.sea import GRAVITY, SeaState, angular_frequency
+from waterair.physics.sea.slopes import rotated_covariance
 
 
 @dataclass
@@ -74,8 +78,10 @@ class WaveSurface(TensorClass):
     """B independent harmonic sea surfaces with K harmonics each.
 
     Components, all ``[B, K]``: ``omega`` (rad/s), ``kx``, ``ky`` (wavenumber components, rad/m),
-    ``amplitude`` (m), ``phase`` (rad). Build with :meth:`sample` or directly from tensors; index
-    or assign rows like any tensorclass (``surface[mask] = other[mask]`` resets a subset).
+    ``amplitude`` (m), ``phase`` (rad); and ``unresolved`` ``[B, 3]``, the slope covariance
+    (σ_xx, σ_xy, σ_yy) of the waves shorter than the sea's cutoff, in the x-y frame
+    (dimensionless; zero for the paper's sea). Build with :meth:`sample` or directly from tensors;
+    index or assign rows like any tensorclass (``surface[mask] = other[mask]`` resets a subset).
     """
 
     omega: torch.Tensor
@@ -83,6 +89,7 @@ class WaveSurface(TensorClass):
     ky: torch.Tensor
     amplitude: torch.Tensor
     phase: torch.Tensor
+    unresolved: torch.Tensor
 
     @classmethod
     def sample(
@@ -99,10 +106,11 @@ class WaveSurface(TensorClass):
     ) -> WaveSurface:
         """Draw ``batch_size`` independent realisations of ``sea``.
 
-        Each realisation jitters every frequency uniformly inside its bin (so the surface does not
-        repeat within an episode and the expected variance is the band's m0) and draws phases
-        uniform in [0, 2π). Random numbers come from ``generator`` if given, else from a new
-        generator seeded with ``seed`` (nondeterministic when both are None); they are drawn on
+        Each realisation jitters every frequency (``jonswap``) or wavenumber (``elfouhaily``)
+        uniformly inside its bin (so the surface does not repeat within an episode and the expected
+        variance is the band's m0) and draws phases uniform in [0, 2π); its ``unresolved`` slope
+        covariance follows its wind speed and direction. Random numbers come from ``generator`` if
+        given, else from a new generator seeded with ``seed`` (nondeterministic when both are None); they are drawn on
         the generator's device in float64, so a seed gives the same sea on CPU and CUDA.
         ``wind`` (m/s, ``[batch_size]``) gives each realisation its own wind speed (domain
         randomisation), and ``wind_direction_deg`` (degrees from +x, ``[batch_size]``) its own wind
@@ -116,32 +124,44 @@ class WaveSurface(TensorClass):
             else:
                 generator.manual_seed(seed)
         draw_device = generator.device
-        n_freq, n_dir = sea.n_freq, sea.n_dir
-
         if wind is not None:
             wind = wind.to(device=draw_device, dtype=torch.float64).expand(batch)
-        edges = sea.frequency_bins(torch.float64, draw_device, wind).expand(batch, n_freq + 1)
-        d_omega = edges[:, 1:] - edges[:, :-1]
-        jitter = torch.rand(batch, n_freq, generator=generator, dtype=torch.float64, device=draw_device)
-        omega = edges[:, :-1] + jitter * d_omega
-        amplitude = sea.amplitudes(omega, d_omega, wind)
+        n_dir = sea.n_dir
+        if sea.spectrum == "jonswap":
+            n_bins = sea.n_freq
+            edges = sea.frequency_bins(torch.float64, draw_device, wind).expand(batch, n_bins + 1)
+            width = edges[:, 1:] - edges[:, :-1]
+            jitter = torch.rand(batch, n_bins, generator=generator, dtype=torch.float64, device=draw_device)
+            omega = edges[:, :-1] + jitter * width
+            amplitude = sea.amplitudes(omega, width, wind)
+            wavenumber = omega**2 / GRAVITY
+        else:
+            n_bins = sea.n_wavenumbers
+            edges = sea.wavenumber_bins(torch.float64, draw_device, wind).expand(batch, n_bins + 1)
+            width = edges[:, 1:] - edges[:, :-1]
+            jitter = torch.rand(batch, n_bins, generator=generator, dtype=torch.float64, device=draw_device)
+            wavenumber = edges[:, :-1] + jitter * width
+            amplitude = sea.wavenumber_amplitudes(wavenumber, width, wind)
+            omega = angular_frequency(wavenumber)
         theta, _ = sea.directions(torch.float64, draw_device)
         if wind_direction_deg is None:
             heading = theta + math.radians(sea.wind_direction_deg)
+            direction = torch.full((batch,), sea.wind_direction_deg, dtype=torch.float64, device=draw_device)
         else:
-            direction = torch.deg2rad(wind_direction_deg.to(device=draw_device, dtype=torch.float64))
-            heading = (theta + direction.expand(batch).unsqueeze(-1)).unsqueeze(1)  # [batch, 1, n_dir]
-        wavenumber = (omega**2 / GRAVITY).unsqueeze(-1)
-        kx = wavenumber * torch.cos(heading)
-        ky = wavenumber * torch.sin(heading)
+            direction = wind_direction_deg.to(device=draw_device, dtype=torch.float64).expand(batch)
+            heading = (theta + torch.deg2rad(direction).unsqueeze(-1)).unsqueeze(1)  # [batch, 1, n_dir]
+        kx = wavenumber.unsqueeze(-1) * torch.cos(heading)
+        ky = wavenumber.unsqueeze(-1) * torch.sin(heading)
         phase = (
             2.0
             * math.pi
-            * torch.rand(batch, n_freq * n_dir, generator=generator, dtype=torch.float64, device=draw_device)
+            * torch.rand(batch, n_bins * n_dir, generator=generator, dtype=torch.float64, device=draw_device)
         )
+        speed = torch.full((batch,), sea.wind, dtype=torch.float64, device=draw_device) if wind is None else wind
+        unresolved = rotated_covariance(*sea.unresolved_slope_variances(speed), direction)
 
         def flat(values: torch.Tensor) -> torch.Tensor:
-            return values.expand(batch, n_freq, n_dir).reshape(batch, -1).to(device=device, dtype=dtype)
+            return values.expand(batch, n_bins, n_dir).reshape(batch, -1).to(device=device, dtype=dtype)
 
         return cls(
             omega=flat(omega.unsqueeze(-1)),
@@ -149,6 +169,7 @@ class WaveSurface(TensorClass):
             ky=flat(ky),
             amplitude=flat(amplitude),
             phase=phase.to(device=device, dtype=dtype),
+            unresolved=unresolved.to(device=device, dtype=dtype),
             batch_size=[batch],
         )
 
