@@ -55,14 +55,17 @@ class EnvConfig:
     device: str = "cpu"  # cpu, cuda, or auto (cuda when available)
     dtype: str = "float32"
     seed: int | None = None  # None: nondeterministic
-    # sea (docs/model.md §1)
+    # sea (docs/model.md §1); presets env/spectrum=paper|ocean and env/sea=calm|moderate|rough
     wind: float = 12.0  # U10, m/s
     fetch: float = 2.0e4  # m
     gamma: float = 3.3
     wind_direction_deg: float = 0.0
-    n_freq: int = 64
+    n_freq: int = 64  # jonswap: frequency bins over [0.6, 6] ω_p
     n_dir: int = 32
     amplitude: str = "standard"  # standard | paper
+    spectrum: str = "jonswap"  # jonswap (the paper's sea) | elfouhaily (the measured-slope sea); env/spectrum=
+    n_wavenumbers: int = 48  # elfouhaily: log-spaced wavenumber bins from 0.4 k_p to the cutoff
+    wavenumber_cutoff: float = 10.0  # elfouhaily: rad/m; shorter waves are carried as unresolved slopes
     # geometry (docs/model.md §0)
     tx_depth: float = 10.0  # m
     rx_height: float = 10.0  # m
@@ -206,6 +209,9 @@ class EnvConfig:
             n_dir=self.n_dir,
             wind_direction_deg=self.wind_direction_deg,
             amplitude=self.amplitude,
+            spectrum=self.spectrum,
+            n_wavenumbers=self.n_wavenumbers,
+            wavenumber_cutoff=self.wavenumber_cutoff,
         )
 
     def link(self) -> LinkGeometry:
