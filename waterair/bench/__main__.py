@@ -14,6 +14,8 @@ meaningful. Timings are wall-clock medians after a warm-up.
 * ``quality``: wall time to a greedy 0.95 of the upper bound at the S1 point, ours against
   Stable-Baselines3 DDPG, measured in one run (:mod:`.quality`).
 * ``summary``: the speed targets as ratios, from the JSON files of the suites above (:mod:`.summary`).
+* ``census``: refraction points per link on the measured-slope sea, their spread and the brightest
+  point's share of the power (:mod:`.census`).
 * ``evaluate``: the default evaluation (shipped policies, every baseline, S1-S3), all policies in
   one batch against one rollout per policy (:mod:`.evaluate`).
 
@@ -27,6 +29,7 @@ from pathlib import Path
 
 import torch
 
+from waterair.bench.census import bench_census, census_table
 from waterair.bench.common import machine
 from waterair.bench.controllers import bench_controllers, controllers_table
 from waterair.bench.env import ENV_HEADER, bench_env
@@ -71,6 +74,14 @@ def main(argv: list[str] | None = None) -> int:
     )
     quality.add_argument("--sb3-frames", type=int, default=80_000, help="Stable-Baselines3 DDPG frames at most")
     quality.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
+    census = sub.add_parser("census", help="refraction points per link on the measured-slope sea (float64)")
+    census.add_argument("--winds", type=float, nargs="+", default=[4.0, 12.0, 20.0], help="U10 (m/s)")
+    census.add_argument("--offsets", type=float, nargs="+", default=[0.0, 0.1, 0.5], help="offset ratios")
+    census.add_argument("--cutoffs", type=float, nargs="+", default=[10.0], help="wavenumber cutoffs k_c (rad/m)")
+    census.add_argument("--links", type=int, default=16, help="sea realisations per point")
+    census.add_argument("--times", type=float, nargs="+", default=[1.0, 7.0], help="instants per sea (s)")
+    census.add_argument("--spacing", type=float, default=0.0, help="between Newton starts (m); 0: λ_c/4, ≤ 8 cm")
+    census.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
     totals = sub.add_parser("summary", help="print the speed targets as ratios from the suites' JSON files")
     totals.add_argument("folder", type=Path, nargs="?", default=Path("outputs/bench"))
     controllers = sub.add_parser("controllers", help="step time the classical controllers and sensors add")
@@ -101,6 +112,10 @@ def main(argv: list[str] | None = None) -> int:
         record = {"machine": machine(torch.device("cpu"), torch.float32)}
         record.update(bench_quality(args.budgets, args.flat_budgets, args.sb3_frames))
         print(quality_table(record))
+    elif args.suite == "census":
+        print(census_table({"rows": []}))
+        record = {"machine": machine(torch.device("cpu"), torch.float64)}
+        record.update(bench_census(args.winds, args.offsets, args.cutoffs, args.links, args.times, args.spacing))
     elif args.suite == "evaluate":
         record = {"machine": machine(device, torch.float32), **bench_evaluate(args.device, args.compile)}
         print(evaluate_table(record))
