@@ -41,6 +41,8 @@ SENSOR_KEYS = (
 """The sensing keys (presets: env/sensor=ideal|ideal_late|realistic)."""
 DTYPES = ("float32", "float64")
 ENV_SOLVERS = ("newton", "centroid")
+CHANNELS = ("single_path", "full", "montecarlo")
+"""Channel models of ``env.channel`` (:mod:`waterair.envs.channels`)."""
 """Path solvers of the step: fixed-iteration Newton in the step's graph, or the paper's centroid method."""
 
 
@@ -77,6 +79,13 @@ class EnvConfig:
     half_fov: float = 0.17  # ω_A, rad
     concentrator_index: float = 1.0
     water: str = "clear_ocean"
+    # channel (docs/model.md §4)
+    channel: str = "single_path"  # single_path | full | montecarlo (evaluation only: slow)
+    aperture_diameter: float = 0.05  # m, the receiver's entrance aperture
+    lattice_nodes: int = 7  # full channel on a two-scale sea: nodes per axis of the surface lattice
+    lattice_span: float = 4.0  # full channel: the lattice's half-width, in standard deviations of its Gaussian
+    montecarlo_rays: int = 20_000  # montecarlo channel: surface rays per link and step
+    montecarlo_facets: int = 64  # montecarlo channel: unresolved-slope draws per surface ray
     # dynamics and interface (docs/environment.md)
     dt: float = 0.05  # s
     max_steps: int = 500  # steps per episode (truncation)
@@ -153,6 +162,21 @@ class EnvConfig:
                 f"env.replicas = {self.replicas} is not allowed; it must divide env.num_envs = {self.num_envs}"
             )
         check_choice("env.solver", self.solver, ENV_SOLVERS)
+        check_choice("env.channel", self.channel, CHANNELS)
+        check_range("env.aperture_diameter", self.aperture_diameter, 0.0, 10.0, low_open=True, unit="m")
+        check_int("env.lattice_nodes", self.lattice_nodes, 3, 31)
+        if self.lattice_nodes % 2 == 0:
+            raise ValueError(
+                f"env.lattice_nodes = {self.lattice_nodes} is not allowed; it must be odd (a node on the centre)"
+            )
+        check_range("env.lattice_span", self.lattice_span, 1.0, 8.0)
+        check_int("env.montecarlo_rays", self.montecarlo_rays, 1, 10**9)
+        check_int("env.montecarlo_facets", self.montecarlo_facets, 1, 10**5)
+        if self.channel != "single_path" and self.solver == "centroid":
+            raise ValueError(
+                f"env.solver = 'centroid' only works with env.channel = 'single_path' (got {self.channel!r}); "
+                "the full channel tracks its point with newton"
+            )
         check_int("env.newton_iterations", self.newton_iterations, 1, 20)
         for name, (low, high, unit) in PER_LINK.items():
             range_key = f"{name}_range"
@@ -229,6 +253,7 @@ class EnvConfig:
             half_fov=self.half_fov,
             concentrator_index=self.concentrator_index,
             water=self.water,
+            aperture_diameter=self.aperture_diameter,
         )
 
     @property

@@ -18,12 +18,14 @@ from waterair.envs.kernel import MEASUREMENT_KEYS, SURFACE_KEYS, StepConstants
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import Sensor, packet_sizes
 from waterair.envs.stepper import Stepper
-from waterair.physics.channel import calm_sea_gains
+from waterair.physics.channel import calm_sea_gains, calm_sea_reference, lattice_shape
 from waterair.physics.paths import flat_sea_point, solve_path
 from waterair.physics.surface import WaveSurface
 
 SENSOR_SEED_MASK = 0x5E5E5E5E
 """The sensor-noise generator is seeded with ``seed XOR`` this, independent of the seas'."""
+MONTECARLO_SEED_MASK = 0x3C3C3C3C
+"""The Monte Carlo tracer's generator (``env.channel=montecarlo``) is seeded with ``seed XOR`` this."""
 
 
 class WaterAirEnv(EnvBase):
@@ -87,6 +89,7 @@ class WaterAirEnv(EnvBase):
         self._make_specs()
         self._generator = torch.Generator()
         self._sensor_generator = torch.Generator()
+        self._montecarlo_generator = torch.Generator()
         self._set_seed(config.seed)
         self.sensor = Sensor(
             config.latency_steps,
@@ -99,7 +102,12 @@ class WaterAirEnv(EnvBase):
             self._sensor_generator,
         )
         self.constants = StepConstants.of(config, self.sensor, self.reward_fn)
-        self.stepper = Stepper(self.constants, config.solver, config.compile_kernel)
+        self.stepper = Stepper(
+            self.constants,
+            config.solver,
+            config.compile_kernel,
+            montecarlo=(config.montecarlo_rays, config.montecarlo_facets, self._montecarlo_generator),
+        )
         columns = kernel.observation_columns(config)
         self._columns = None if columns is None else torch.tensor(columns, device=self.device)
         self._allocate_state()
@@ -156,9 +164,11 @@ class WaterAirEnv(EnvBase):
         if seed is None:
             self._generator.seed()
             self._sensor_generator.seed()
+            self._montecarlo_generator.seed()
         else:
             self._generator.manual_seed(int(seed))
             self._sensor_generator.manual_seed(int(seed) ^ SENSOR_SEED_MASK)
+            self._montecarlo_generator.manual_seed(int(seed) ^ MONTECARLO_SEED_MASK)
 
     @property
     def rng(self) -> torch.Generator:
@@ -253,6 +263,8 @@ class WaterAirEnv(EnvBase):
             "action_history": zeros(history, 4),
             # the packets in flight, newest first; the controller sees the last slot
             "packets": zeros(self.config.latency_steps + 1, sum(packet_sizes(history))),
+            "lattice_basis": zeros(2, 2),  # the full channel's surface lattice (m) and blur (slope²)
+            "blur": zeros(3),
         }
         self._base_tilt = zeros(4)  # the residual base controller's tilts for the next action
         self.measurement = {
@@ -324,7 +336,10 @@ class WaterAirEnv(EnvBase):
         azimuth = self._per_link(config.offset_azimuth_range, config.offset_azimuth_values, None, distinct)
         azimuth = None if azimuth is None else azimuth[copy.cpu()]
         tx, rx = (v.to(self.device, dtype) for v in self.link.positions_for(offset, azimuth))
-        reference = calm_sea_gains(tx.double(), rx.double(), self.optics).to(dtype)
+        calm = calm_sea_gains if config.channel == "single_path" else calm_sea_reference
+        reference = calm(tx.double(), rx.double(), self.optics).to(dtype)
+        basis, blur = lattice_shape(tx.double(), rx.double(), self.surface.unresolved[rows].double(), self.optics)
+        basis, blur = basis.to(dtype), blur.to(dtype)
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)
         zero = torch.zeros(rows.numel(), device=self.device, dtype=dtype)
         path = solve_path(
@@ -341,7 +356,22 @@ class WaterAirEnv(EnvBase):
         upright = torch.zeros(rows.numel(), 2, device=self.device, dtype=dtype)
         tilts = {"tx_tilt": upright, "rx_tilt": upright}
         noise = self.sensor.draw(rows.numel(), dtype, self.device)
-        measurement, packet, stored, feature = kernel.record(self.constants, tilts, path, reference, flat, noise)
+        light = None
+        if config.channel == "full":
+            rows_state = {
+                "flat_point": flat,
+                "tx_position": tx,
+                "rx_position": rx,
+                "lattice_basis": basis,
+                "blur": blur,
+            }
+            rows_state.update({key: getattr(self.surface, key)[rows] for key in SURFACE_KEYS})
+            light = kernel.full_light(self.constants, rows_state, path, zero)
+        elif config.channel == "montecarlo":
+            light = self.stepper.montecarlo_light(self.surface[rows], tx, rx, zero, flat)
+        measurement, packet, stored, _, feature = kernel.record(
+            self.constants, tilts, path, reference, flat, noise, light
+        )
         no_history = torch.zeros(rows.numel(), config.history_length, device=self.device, dtype=dtype)
         packed = kernel.pack(packet, no_history)  # a reset has no older packet: it fills every slot
         updates = {
@@ -359,6 +389,8 @@ class WaterAirEnv(EnvBase):
             "last_feature": feature,
             "action_history": 0.0,
             "packets": packed.unsqueeze(1),
+            "lattice_basis": basis,
+            "blur": blur,
         }
         for key, value in updates.items():
             state[key][rows] = value

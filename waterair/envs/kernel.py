@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import torch
 
+from waterair.envs import channels
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import (
@@ -28,7 +29,7 @@ from waterair.envs.sensors import (
     packet_sizes,
     spot_position,
 )
-from waterair.physics.channel import Transceiver, channel_gain, gain_upper_bound, pointing
+from waterair.physics.channel import Transceiver, pointing
 from waterair.physics.optics import unit_vector
 from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path
 from waterair.physics.paths.fixed import fixed_newton_terms
@@ -53,6 +54,9 @@ STATE_KEYS = (
 )
 """What the step reads: the seas' components, the clock, the gimbals, the geometry, the last two
 path points (the prediction), the sensor history and the packets in flight ``[B, slots, width]``."""
+LATTICE_LEASH = 3.0
+"""How far (m) the two-scale lattice's centre may stray from the calm-sea point before it is put back
+there: the light comes from within a metre or so of it at any wind (docs/model.md §4.3)."""
 MEASUREMENT_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid", "alpha_d", "alpha_a", "departure", "arrival")
 """The true values each step reports beside the observation."""
 
@@ -75,6 +79,10 @@ class StepConstants:
     episode_seconds: float
     max_steps: int
     vertical_distance: float
+    channel: str
+    two_scale: bool
+    lattice_nodes: int
+    lattice_span: float
 
     @classmethod
     def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward) -> StepConstants:
@@ -94,7 +102,17 @@ class StepConstants:
             episode_seconds=config.episode_seconds,
             max_steps=config.max_steps,
             vertical_distance=config.tx_depth + config.rx_height,
+            channel=config.channel,
+            two_scale=config.spectrum == "elfouhaily",
+            lattice_nodes=config.lattice_nodes,
+            lattice_span=config.lattice_span,
         )
+
+    @property
+    def tracks_exactly(self) -> bool:
+        """Whether the step needs the tracked refraction point converged (it does not when the
+        two-scale lattice only centres on it, nor for the Monte Carlo tracer)."""
+        return self.channel == "single_path" or (self.channel == "full" and not self.two_scale)
 
 
 def advance(c: StepConstants, state: dict, action: torch.Tensor) -> dict:
@@ -162,19 +180,19 @@ def solve(c: StepConstants, state: dict, time: torch.Tensor, start=None, iterati
     )
 
 
-def record(c: StepConstants, tilts: dict, path: PathSolution, reference_gain, flat_point, noise):
-    """What a solved path gives: the true measurement, the sensor packet and the next warm start.
+def record(c: StepConstants, tilts: dict, path: PathSolution, reference_gain, flat_point, noise, light=None):
+    """What a solved path (and, for the full channel, its ``light``) gives: the true measurement,
+    the sensor packet and the next warm start.
 
-    Returns (measurement dict, packet ``[n, width]``, stored point ``[n, 3]``, intensity feature ``[n]``).
-    An invalid path stores the calm-sea point, so that the next solve does not start from a lost one.
+    Returns (measurement dict, packet ``[n, width]``, stored point ``[n, 3]``, whether the path's own
+    point was stored ``[n]``, intensity feature ``[n]``). An invalid path stores the calm-sea point,
+    so that the next solve does not start from a lost one.
     """
     tx_dir, rx_dir = pointing(tilts["tx_tilt"], up=True), pointing(tilts["rx_tilt"], up=False)
-    gain = channel_gain(path, tx_dir, rx_dir, c.optics)
-    intensity = gain.gain / reference_gain
+    true, seen_arrival, lit = channels.measure(c.optics, path, light, tx_dir, rx_dir)
+    intensity = true["gain"] / reference_gain
     measured = c.sensor.intensity(intensity, noise)
-    spot, spot_valid = c.sensor.spot(
-        spot_position(path.arrival, rx_dir, c.optics.half_fov), gain.arrival > 0, measured, noise
-    )
+    spot, spot_valid = c.sensor.spot(spot_position(seen_arrival, rx_dir, c.optics.half_fov), lit, measured, noise)
     feature = intensity_feature(measured)
     packet = {
         "tx_pointing": tx_dir,
@@ -183,18 +201,19 @@ def record(c: StepConstants, tilts: dict, path: PathSolution, reference_gain, fl
         "spot": spot,
         "spot_valid": spot_valid.unsqueeze(-1),
     }
-    measurement = {
-        "gain": gain.gain,
-        "gain_upper_bound": gain_upper_bound(path, c.optics),
-        "intensity": intensity,
-        "path_valid": path.valid,
-        "alpha_d": gain.alpha_d,
-        "alpha_a": gain.alpha_a,
-        "departure": path.departure,
-        "arrival": path.arrival,
-    }
-    stored = torch.where(path.valid.unsqueeze(-1), path.point, flat_point)
-    return measurement, packet, stored, feature
+    measurement = {**true, "intensity": intensity}
+    tracked = tracked_point(c, path, flat_point)
+    stored = torch.where(tracked.unsqueeze(-1), path.point, flat_point)
+    return measurement, packet, stored, tracked, feature
+
+
+def tracked_point(c: StepConstants, path: PathSolution, flat_point: torch.Tensor) -> torch.Tensor:
+    """Whether each link keeps its path's point as the next warm start ``[n]``: a valid path, or, where
+    the point only centres the two-scale lattice (or nothing), any finite point near the calm-sea one."""
+    if c.tracks_exactly:
+        return path.valid
+    near = torch.linalg.vector_norm(path.point[:, :2] - flat_point[:, :2], dim=-1) < LATTICE_LEASH
+    return torch.isfinite(path.point).all(-1) & near
 
 
 def pack(packet: dict, history: torch.Tensor) -> torch.Tensor:
@@ -208,19 +227,24 @@ def unpack(packet: torch.Tensor) -> dict[str, torch.Tensor]:
     return dict(zip(PACKET_PARTS, packet.split(packet_sizes(history_length), dim=-1), strict=True))
 
 
-def conclude(c: StepConstants, state: dict, moved: dict, solution: tuple, noise):
+def conclude(c: StepConstants, state: dict, moved: dict, solution: tuple, noise, light=None):
     """The new state and the step's outputs, given the gimbals ``moved`` and the path ``solution``
-    (P ``[B, 3]``, slopes ``[B, 2]``, converged ``[B]``, iterations ``[B]``)."""
+    (P ``[B, 3]``, slopes ``[B, 2]``, converged ``[B]``, iterations ``[B]``). The full channel's light
+    is computed here; the Monte Carlo tracer's comes as ``light``."""
     point, slope, converged, taken = solution
     n_w, n_a = c.optics.n_water, c.optics.n_air
     path = finish_path(point, slope, state["tx_position"], state["rx_position"], converged, taken, n_w, n_a)
-    measurement, packet, stored, feature = record(c, moved, path, state["reference_gain"], state["flat_point"], noise)
+    if c.channel == "full":
+        light = full_light(c, state, path, moved["time"])
+    measurement, packet, stored, tracked, feature = record(
+        c, moved, path, state["reference_gain"], state["flat_point"], noise, light
+    )
     history = torch.cat((state["last_feature"].unsqueeze(-1), state["history"][:, :-1]), dim=-1)
     packets = torch.cat((pack(packet, history).unsqueeze(1), state["packets"][:, :-1]), dim=1)
     new = {
         **moved,
         "point": stored,
-        "previous_point": torch.where(path.valid.unsqueeze(-1), state["point"], stored),
+        "previous_point": torch.where(tracked.unsqueeze(-1), state["point"], stored),
         "history": history,
         "last_feature": feature,
         "packets": packets,
@@ -233,6 +257,28 @@ def conclude(c: StepConstants, state: dict, moved: dict, solution: tuple, noise)
         "base_tilt": base_tilts(c, {**state, **new}),
     }
     return new, outputs
+
+
+def full_light(c: StepConstants, state: dict, path: PathSolution, time: torch.Tensor):
+    """The full channel's light for the links of ``state`` (:func:`waterair.envs.channels.light`), the
+    lattice centred on the tracked point (or the calm-sea point where that is lost)."""
+    tracked = tracked_point(c, path, state["flat_point"])
+    centre = torch.where(tracked.unsqueeze(-1), path.point[:, :2], state["flat_point"][:, :2])
+    components = tuple(state[key] for key in SURFACE_KEYS)
+    return channels.light(
+        c.optics,
+        c.two_scale,
+        c.lattice_nodes,
+        c.lattice_span,
+        components,
+        state["tx_position"],
+        state["rx_position"],
+        time,
+        path,
+        centre,
+        state["lattice_basis"],
+        state["blur"],
+    )
 
 
 def step(c: StepConstants, state: dict, action: torch.Tensor, noise: torch.Tensor | None):

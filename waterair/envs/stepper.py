@@ -1,10 +1,11 @@
 """Runs the environment step (:mod:`waterair.envs.kernel`): compiled or eager, and finishes slow paths.
 
 :class:`Stepper` calls the one-graph step, and in the rare case that some link's fixed-iteration
-path solve has not converged, continues those links and concludes the step again; with the
-``centroid`` solver it solves eagerly and concludes in the graph. Compiled functions are built on
-first use and shared by every environment in the process (``torch.compile`` guards on the
-configuration, so environments that differ get graphs of their own).
+path solve has not converged, continues those links and concludes the step again (only where the
+channel needs the exact point: the two-scale lattice merely centres on it); with the ``centroid``
+solver it solves eagerly and concludes in the graph; with the Monte Carlo channel it traces eagerly.
+Compiled functions are built on first use and shared by every environment in the process
+(``torch.compile`` guards on the configuration, so environments that differ get graphs of their own).
 """
 
 from __future__ import annotations
@@ -15,6 +16,9 @@ import torch
 
 from waterair.envs import kernel
 from waterair.envs.kernel import StepConstants
+from waterair.physics.channel.lattice import beam_width
+from waterair.physics.montecarlo import trace
+from waterair.physics.optics import unit_vector
 from waterair.physics.paths import FixedNewtonOptions, solve_path
 from waterair.physics.paths.fixed import finish_unconverged
 from waterair.physics.surface import WaveSurface
@@ -34,14 +38,27 @@ def compiled(name: str):
 class Stepper:
     """The step of one environment: ``constants``, its solver, and whether to run compiled."""
 
-    def __init__(self, constants: StepConstants, solver: str, compile_kernel: bool):
+    def __init__(
+        self,
+        constants: StepConstants,
+        solver: str,
+        compile_kernel: bool,
+        montecarlo: tuple[int, int, torch.Generator] | None = None,
+    ):
         self.constants, self.solver, self.compile_kernel = constants, solver, compile_kernel
+        self.montecarlo = montecarlo  # (rays, facets, generator) of env.channel=montecarlo
         pick = compiled if compile_kernel else functools.partial(getattr, kernel)
         self._step, self._finish, self._conclude = pick("step"), pick("finish"), pick("conclude")
 
     def __call__(self, surface: WaveSurface, state: dict, action: torch.Tensor, noise):
         """(new state entries, outputs) of one step; ``state`` includes the surface's components."""
         c = self.constants
+        if c.channel == "montecarlo":
+            moved = kernel.advance(c, state, action)
+            point, slope, _, converged, taken = kernel.solve(c, state, moved["time"])
+            tx, rx = state["tx_position"], state["rx_position"]
+            light = self.montecarlo_light(surface, tx, rx, moved["time"], state["flat_point"])
+            return kernel.conclude(c, state, moved, (point, slope, converged, taken), noise, light)
         if self.solver == "centroid":
             moved = kernel.advance(c, state, action)
             path = solve_path(
@@ -58,9 +75,31 @@ class Stepper:
             slope = -path.normal[:, :2] / path.normal[:, 2:]
             return self._conclude(c, state, moved, (path.point, slope, path.valid, path.iterations), noise)
         new, outputs, moved, solution = self._step(c, state, action, noise)
-        if bool(solution[3].all()):  # the one host synchronisation of a step
+        if not c.tracks_exactly or bool(solution[3].all()):  # the one host synchronisation of a step
             return new, outputs
         return self._finish_paths(surface, state, moved, solution, noise)
+
+    def montecarlo_light(self, surface: WaveSurface, tx, rx, time: torch.Tensor, flat_point: torch.Tensor):
+        """The Monte Carlo tracer's hits for links ``[n]`` (eager): rays from each transmitter around
+        its calm-sea direction, twice as wide as the beam, counted across the calm-sea arrival."""
+        assert self.montecarlo is not None
+        rays, facets, generator = self.montecarlo
+        optics = self.constants.optics
+        axis, reference = unit_vector(flat_point - tx), unit_vector(rx - flat_point)
+        result = trace(
+            surface,
+            tx,
+            rx,
+            time,
+            optics,
+            axis=axis,
+            reference=reference,
+            width=beam_width(optics),
+            rays=rays,
+            facets=facets,
+            generator=generator,
+        )
+        return result.light
 
     def _finish_paths(self, surface: WaveSurface, state: dict, moved: dict, solution: tuple, noise):
         """Finish the links whose fixed-iteration solve has not converged, then conclude the step again.

@@ -9,6 +9,7 @@ Equations and the corrections to the paper are in docs/model.md.
 
 from waterair.physics.channel import (
     ChannelGain,
+    LightSamples,
     LinkGeometry,
     Transceiver,
     calm_sea_gain,
@@ -16,7 +17,11 @@ from waterair.physics.channel import (
     channel_gain,
     gain_upper_bound,
     pointing,
+    received_gain,
+    two_scale_light,
+    upper_bound,
 )
+from waterair.physics.montecarlo import MonteCarloLight, trace
 from waterair.physics.paths import CentroidOptions, NewtonOptions, PathSolution, flat_sea_point, solve_path
 from waterair.physics.paths.census import RefractionPoints, refraction_points
 from waterair.physics.sea import MeanSquareSlope, SeaState, cox_munk, elevation_spectrum, jonswap, spreading
@@ -25,8 +30,10 @@ from waterair.physics.surface import SurfaceSample, WaveSurface
 __all__ = [
     "CentroidOptions",
     "ChannelGain",
+    "LightSamples",
     "LinkGeometry",
     "MeanSquareSlope",
+    "MonteCarloLight",
     "NewtonOptions",
     "PathSolution",
     "RefractionPoints",
@@ -43,7 +50,11 @@ __all__ = [
     "gain_upper_bound",
     "jonswap",
     "pointing",
+    "received_gain",
     "refraction_points",
     "solve_path",
     "spreading",
+    "trace",
+    "two_scale_light",
+    "upper_bound",
 ]

@@ -206,3 +206,14 @@ class WaveSurface(TensorClass):
     def height(self, x: torch.Tensor, y: torch.Tensor, t: float | torch.Tensor) -> torch.Tensor:
         """η(x, y, t) in metres; shapes as in :meth:`evaluate`."""
         return self.evaluate(x, y, t, order=0).height
+
+
+def directional_third_derivatives(omega, phase, kx, ky, amplitude, xy, t, axes):
+    """η_vvv = −Σ a (k·v)³ sin ψ, the surface's third derivative (1/m²) along each unit ``axes`` ``[B, D, 2]``.
+
+    Args: components ``[B, K]``; one point ``xy`` ``[B, 2]`` (m) per sea; ``t`` ``[B]`` (s). Returns
+    ``[B, D]``. It bounds the lensing at a caustic (docs/model.md §4.2).
+    """
+    psi = omega * t.unsqueeze(-1) + phase - kx * xy[:, :1] - ky * xy[:, 1:]
+    along = kx.unsqueeze(1) * axes[..., :1] + ky.unsqueeze(1) * axes[..., 1:]  # [B, D, K]
+    return -(amplitude.unsqueeze(1) * along**3 * torch.sin(psi).unsqueeze(1)).sum(-1)

@@ -1,6 +1,4 @@
-"""Link geometry and the channel gain of a refracted path (docs/model.md §0 and §4, paper eq. (1)).
-
-    G = G_D(α_D) · G_p(d_water, d_air) · G_ref(θ1) · G_A(α_A)
+"""Where the link's ends are and what optics they carry (docs/model.md §0, §4 and §5).
 
 Distances in metres, angles in radians (``_deg`` names in degrees).
 """
@@ -11,20 +9,9 @@ import math
 from dataclasses import dataclass
 
 import torch
-from tensordict import TensorClass
 
 from waterair.core.validation import check_choice, check_range
-from waterair.physics.optics import (
-    N_AIR,
-    N_WATER,
-    WATER_ATTENUATION_PER_M,
-    angle_between,
-    arrival_gain,
-    departure_gain,
-    fresnel_transmittance,
-    path_gain,
-)
-from waterair.physics.paths import PathSolution, flat_sea_point
+from waterair.physics.optics import N_AIR, N_WATER, WATER_ATTENUATION_PER_M
 
 
 @dataclass(frozen=True)
@@ -91,6 +78,8 @@ class Transceiver:
         water: attenuation preset name, one of :data:`WATER_ATTENUATION_PER_M`.
         attenuation: attenuation coefficient c (1/m); None takes the preset's value.
         n_water, n_air: refractive indices.
+        aperture_diameter: receiver aperture diameter D (m), in (0, 1]: the entrance of the receiver optics,
+            over which the full channel averages the light (docs/model.md §4.3).
     """
 
     wavelength: float = 520e-9
@@ -101,6 +90,7 @@ class Transceiver:
     attenuation: float | None = None
     n_water: float = N_WATER
     n_air: float = N_AIR
+    aperture_diameter: float = 0.05
 
     def __post_init__(self) -> None:
         check_range("wavelength", self.wavelength, 0.0, 1e-5, low_open=True, unit="m")
@@ -112,79 +102,12 @@ class Transceiver:
             check_range("attenuation", self.attenuation, 0.0, 100.0, unit="1/m")
         check_range("n_water", self.n_water, 1.0, 3.0)
         check_range("n_air", self.n_air, 1.0, self.n_water)
+        check_range("aperture_diameter", self.aperture_diameter, 0.0, 1.0, low_open=True, unit="m")
 
     @property
     def attenuation_per_m(self) -> float:
         """The attenuation coefficient c in use (1/m)."""
         return WATER_ATTENUATION_PER_M[self.water] if self.attenuation is None else self.attenuation
-
-
-class ChannelGain(TensorClass):
-    """G and its four factors for each batch element (all ``[B]``), plus the pointing errors.
-
-    ``gain`` G (1/m²); ``departure`` G_D, ``path`` G_p (1/m²), ``refraction`` G_ref, ``arrival``
-    G_A; ``alpha_d`` α_D and ``alpha_a`` α_A (rad). Invalid paths have every gain 0.
-    """
-
-    gain: torch.Tensor
-    departure: torch.Tensor
-    path: torch.Tensor
-    refraction: torch.Tensor
-    arrival: torch.Tensor
-    alpha_d: torch.Tensor
-    alpha_a: torch.Tensor
-
-
-def channel_gain(path: PathSolution, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> ChannelGain:
-    """Channel gain of ``path`` for the given pointings (docs/model.md §4, paper eq. (1)).
-
-    Args:
-        path: the refracted path.
-        tx_dir: unit transmitter pointing (upward), ``[B, 3]``.
-        rx_dir: unit receiver boresight (downward), ``[B, 3]``.
-        optics: transceiver parameters.
-
-    α_D is the angle between ``tx_dir`` and u_d; α_A the angle between ``rx_dir`` and −u_a.
-    """
-    alpha_d = angle_between(tx_dir, path.departure)
-    alpha_a = angle_between(rx_dir, -path.arrival)
-    g_d = departure_gain(alpha_d, optics.divergence, optics.wavelength)
-    g_a = arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index)
-    g_p, g_ref = _path_terms(path, optics)
-    gain = g_d * g_p * g_ref * g_a
-    return ChannelGain(
-        gain=gain,
-        departure=g_d,
-        path=g_p,
-        refraction=g_ref,
-        arrival=g_a,
-        alpha_d=alpha_d,
-        alpha_a=alpha_a,
-        batch_size=gain.shape[:1],
-    )
-
-
-def gain_upper_bound(path: PathSolution, optics: Transceiver) -> torch.Tensor:
-    """G_UB = G_p G_ref n_c² / sin² ω_A: both ends pointed along the path (docs/model.md §4), ``[B]`` (1/m²)."""
-    g_p, g_ref = _path_terms(path, optics)
-    return g_p * g_ref * _peak_arrival_gain(optics)
-
-
-def calm_sea_gain(link: LinkGeometry, optics: Transceiver, dtype: torch.dtype = torch.float64) -> float:
-    """G_0: the aligned gain on a flat sea for this geometry (1/m²), the intensity reference (docs/model.md §4)."""
-    tx, rx = link.positions(dtype)
-    return float(calm_sea_gains(tx.unsqueeze(0), rx.unsqueeze(0), optics)[0])
-
-
-def calm_sea_gains(tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver) -> torch.Tensor:
-    """G_0 for a batch of geometries, ``tx``/``rx`` ``[B, 3]`` (m) → ``[B]`` (1/m²)."""
-    point = flat_sea_point(tx, rx, optics.n_water, optics.n_air)
-    d_water = torch.linalg.vector_norm(point - tx, dim=-1)
-    d_air = torch.linalg.vector_norm(rx - point, dim=-1)
-    theta1 = torch.acos(((point - tx)[:, 2] / d_water).clamp(-1.0, 1.0))
-    g_p = path_gain(d_water, d_air, optics.attenuation_per_m)
-    g_ref = fresnel_transmittance(theta1, optics.n_water, optics.n_air)
-    return g_p * g_ref * _peak_arrival_gain(optics)
 
 
 def pointing(tilt: torch.Tensor, up: bool) -> torch.Tensor:
@@ -195,16 +118,3 @@ def pointing(tilt: torch.Tensor, up: bool) -> torch.Tensor:
     """
     vertical = torch.sqrt(torch.clamp(1.0 - (tilt**2).sum(-1, keepdim=True), min=0.0))
     return torch.cat((tilt, vertical if up else -vertical), dim=-1)
-
-
-def _peak_arrival_gain(optics: Transceiver) -> float:
-    """G_A at α_A = 0: n_c² / sin² ω_A (docs/model.md §4)."""
-    return optics.concentrator_index**2 / math.sin(optics.half_fov) ** 2
-
-
-def _path_terms(path: PathSolution, optics: Transceiver) -> tuple[torch.Tensor, torch.Tensor]:
-    """G_p and G_ref of a path, zero where the path is invalid."""
-    g_p = path_gain(path.d_water, path.d_air, optics.attenuation_per_m)
-    g_ref = fresnel_transmittance(path.theta1, optics.n_water, optics.n_air)
-    zero = torch.zeros_like(g_p)
-    return torch.where(path.valid, g_p, zero), torch.where(path.valid, g_ref, zero)

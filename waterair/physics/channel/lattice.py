@@ -1,0 +1,141 @@
+"""The two-scale channel: light through the resolved surface and the unresolved slopes (docs/model.md §4.3).
+
+On a sea whose waves beyond the cutoff are carried as a slope covariance Σ (§1.3), every surface
+point can send light to the receiver: it takes a facet whose extra slope ζ bends the ray from T
+exactly toward R, and ζ is Gaussian with covariance Σ. The irradiance at R is the integral over
+the resolved surface (horizontal coordinates s)
+
+    E = ∫ ds J(u1) T(θ1) e^{−c r1} (|N·u1| / r1²) · p_Σ(ζ(s)) · (n_a/r2)² |w·u2| / |w_z|³     (4.8)
+
+with u1, u2 the directions T → P(s) → R, w = n_w u1 − n_a u2 (the normal a facet needs, by Snell's
+law), ζ(s) = (−w_x/w_z − η_x, −w_y/w_z − η_y) the slope it needs beyond the resolved one, and the
+last factor |det ∂ζ/∂R| (how fast ζ changes as the receiver moves). Every refraction point of the
+resolved sea lies where ζ = 0, each lit by its lensing, and the caustics between them are smooth:
+(4.8) is (4.4) summed over points, blurred by Σ (for Σ → 0 it tends to that sum). The aperture
+adds its own blur: a disk of diameter D averages the pattern over (D/4)² per axis.
+
+It is integrated by the trapezoid rule on an n × n lattice around the tracked refraction point,
+shaped by the Gaussian the integrand would be on a calm sea (the patch the blur spreads the light
+over, times the beam's footprint): spectrally accurate for Gaussian-like integrands, and measured
+against a fine grid in docs/model.md §4.3. Each node is one order-1 surface evaluation.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from waterair.physics.channel.geometry import Transceiver
+from waterair.physics.channel.light import LightSamples
+from waterair.physics.optics import fresnel_transmittance
+from waterair.physics.paths import flat_sea_point
+from waterair.physics.surface import harmonic_sums
+
+LATTICE_NODES = 7
+"""Nodes per axis of the lattice (n² surface evaluations per link): within 2 % (rms) of a fine grid
+at 4-20 m/s for pointings within one beam divergence of the best (docs/model.md §4.3)."""
+LATTICE_SPAN = 4.0
+"""Half-width of the lattice in standard deviations of its Gaussian (the trapezoid rule's tails)."""
+LARGEST_PATCH = 0.8
+"""Prior width (m) of the patch: a floor on its precision, where the blur would spread it further."""
+
+
+def lattice_shape(tx: torch.Tensor, rx: torch.Tensor, slope_covariance: torch.Tensor, optics: Transceiver):
+    """Per-link lattice basis U ``[B, 2, 2]`` (m) and the blur covariance ``[B, 3]`` (σ_xx, σ_xy, σ_yy).
+
+    From the calm-sea geometry of each link (``tx``, ``rx`` ``[B, 3]``, m) and its unresolved slope
+    covariance ``[B, 3]``: the blur adds the aperture's spread (D/4 per axis of receiver
+    displacement, through |∂ζ/∂R|); the patch is the Gaussian p_Σ(A s) with A = H_flat / w_z the
+    calm sea's map from surface steps to needed slopes; the beam footprint is r1 ω'/2 per axis
+    (stretched by 1/cos θ1 along the incidence plane). U's columns are the principal axes of
+    their product, scaled by its standard deviations.
+    """
+    point = flat_sea_point(tx, rx, optics.n_water, optics.n_air)
+    d1, d2 = point - tx, rx - point
+    r1, r2 = torch.linalg.vector_norm(d1, dim=-1), torch.linalg.vector_norm(d2, dim=-1)
+    u1, u2 = d1 / r1.unsqueeze(-1), d2 / r2.unsqueeze(-1)
+    w = optics.n_water * u1 - optics.n_air * u2
+    w_z = w[:, 2]
+    eye = torch.eye(2, dtype=tx.dtype, device=tx.device)
+    # calm-sea Hessian of L: Σ_i (n_i / r_i)(I − u_i u_iᵀ) over the horizontal axes
+    hessian = (optics.n_water / r1)[:, None, None] * (eye - u1[:, :2, None] * u1[:, None, :2]) + (optics.n_air / r2)[
+        :, None, None
+    ] * (eye - u2[:, :2, None] * u2[:, None, :2])
+    slope_map = hessian / w_z[:, None, None]
+    aperture = (optics.aperture_diameter / 4.0 * optics.n_air / r2) ** 2 * (w * u2).sum(-1).abs() / w_z.abs() ** 3
+    blur = slope_covariance + torch.stack((aperture, torch.zeros_like(aperture), aperture), dim=-1)
+    precision = slope_map.transpose(-1, -2) @ torch.linalg.inv(_matrix(blur)) @ slope_map + eye / LARGEST_PATCH**2
+    horizontal = d1[:, :2] / torch.linalg.vector_norm(d1[:, :2], dim=-1, keepdim=True).clamp(min=1e-12)
+    horizontal = torch.where(torch.isfinite(horizontal), horizontal, torch.zeros_like(horizontal))
+    cos1 = u1[:, 2]
+    footprint = (r1 * beam_width(optics) / 2.0) ** 2
+    along = horizontal.unsqueeze(-1) * horizontal.unsqueeze(-2)
+    covariance = footprint[:, None, None] * (eye + (1.0 / cos1**2 - 1.0)[:, None, None] * along)
+    values, vectors = torch.linalg.eigh(torch.linalg.inv(precision + torch.linalg.inv(covariance)))
+    return vectors * torch.sqrt(values).unsqueeze(-2), blur
+
+
+def two_scale_light(
+    components: tuple[torch.Tensor, ...],
+    tx: torch.Tensor,
+    rx: torch.Tensor,
+    time: torch.Tensor,
+    centre: torch.Tensor,
+    basis: torch.Tensor,
+    blur: torch.Tensor,
+    optics: Transceiver,
+    nodes: int = LATTICE_NODES,
+    span: float = LATTICE_SPAN,
+) -> LightSamples:
+    """Eq. (4.8) on the lattice ``centre + basis · z`` as weighted rays (:class:`LightSamples`, N = nodes²).
+
+    Args:
+        components: the surface's (omega, phase, kx, ky, amplitude), each ``[B, K]``.
+        tx, rx: T and R (m) ``[B, 3]``; time (s) ``[B]``.
+        centre: the lattice's centre (x, y) (m) ``[B, 2]``, the tracked refraction point.
+        basis, blur: from :func:`lattice_shape`.
+        optics: the transceiver. nodes, span: the lattice (odd nodes put one on the centre).
+
+    A pure tensor function (no data-dependent Python), so that it compiles into the step's graph.
+    """
+    batch, dtype = tx.shape[0], tx.dtype
+    grid = torch.linspace(-span, span, nodes, dtype=dtype, device=tx.device)
+    z = torch.stack(torch.meshgrid(grid, grid, indexing="ij"), dim=-1).reshape(-1, 2)  # [N, 2]
+    xy = centre.unsqueeze(1) + torch.einsum("bij,nj->bni", basis, z)
+    omega, phase, kx, ky, amplitude = components
+    height, slope_x, slope_y = harmonic_sums(omega, phase, kx, ky, amplitude, xy[..., 0], xy[..., 1], time, 1)
+    point = torch.cat((xy, height.unsqueeze(-1)), dim=-1)
+    d1, d2 = point - tx.unsqueeze(1), rx.unsqueeze(1) - point
+    r1, r2 = torch.linalg.vector_norm(d1, dim=-1), torch.linalg.vector_norm(d2, dim=-1)
+    u1, u2 = d1 / r1.unsqueeze(-1), d2 / r2.unsqueeze(-1)
+    w = optics.n_water * u1 - optics.n_air * u2
+    w_z = w[..., 2].clamp(min=1e-6)
+    needed = torch.stack((-w[..., 0] / w_z - slope_x, -w[..., 1] / w_z - slope_y), dim=-1)
+    sxx, sxy, syy = (v.unsqueeze(-1) for v in blur.unbind(-1))
+    determinant = sxx * syy - sxy**2
+    quadratic = syy * needed[..., 0] ** 2 - 2.0 * sxy * needed[..., 0] * needed[..., 1] + sxx * needed[..., 1] ** 2
+    density = torch.exp(-0.5 * quadratic / determinant) / (2.0 * math.pi * torch.sqrt(determinant))
+    facet = w / torch.linalg.vector_norm(w, dim=-1, keepdim=True)
+    theta1 = torch.acos((u1 * facet).sum(-1).clamp(-1.0, 1.0))
+    transmitted = fresnel_transmittance(theta1, optics.n_water, optics.n_air) * torch.exp(
+        -optics.attenuation_per_m * r1
+    )
+    normal_u1 = (u1[..., 2] - slope_x * u1[..., 0] - slope_y * u1[..., 1]).abs()  # |N·u1|, N = (−η_x, −η_y, 1)
+    to_receiver = optics.n_air**2 / r2**2 * (w * u2).sum(-1).abs() / w_z**3
+    area = (2.0 * span / (nodes - 1)) ** 2 * torch.linalg.det(basis).abs().unsqueeze(-1)
+    upward = (w[..., 2] > 1e-6) & (u2[..., 2] > 0)
+    weight = area * transmitted * normal_u1 / r1**2 * density * to_receiver
+    weight = torch.where(upward & torch.isfinite(weight), weight, torch.zeros_like(weight))
+    return LightSamples(weight=weight, departure=u1, arrival=u2, batch_size=[batch, nodes * nodes])
+
+
+def beam_width(optics: Transceiver) -> float:
+    """ω' = ω_D sqrt(1 + (λ / (π ω_D²))²) (rad): G_D ≈ exp(−2 α² / ω'²) for small α (docs/model.md §4.1)."""
+    return optics.divergence * math.sqrt(1.0 + (optics.wavelength / (math.pi * optics.divergence**2)) ** 2)
+
+
+def _matrix(covariance: torch.Tensor) -> torch.Tensor:
+    """(σ_xx, σ_xy, σ_yy) ``[..., 3]`` as a symmetric ``[..., 2, 2]``."""
+    xx, xy, yy = covariance.unbind(-1)
+    return torch.stack((torch.stack((xx, xy), -1), torch.stack((xy, yy), -1)), -2)

@@ -1,0 +1,113 @@
+"""The light at the receiver as weighted rays, and what a pointing makes of it (docs/model.md §4.4-§4.5).
+
+Every channel model that sums light from many places (the ray-tube point of a sea without
+unresolved slopes, the surface lattice of the two-scale sea, the Monte Carlo tracer's hits) ends in
+:class:`LightSamples`: per link, N samples, each with a weight W (its irradiance per unit on-axis
+radiant intensity, Fresnel and absorption included, before the angular gains), the direction it
+left the transmitter (u1) and the direction it arrives at the receiver (u2). For pointings
+(tx_dir, rx_dir) the received gain is
+
+    G = Σ_n W_n G_D(∠(tx_dir, u1_n)) G_A(∠(rx_dir, −u2_n))                                (4.7)
+
+with the paper's angular gains G_D and G_A (§4.1). The upper bound is the largest G over both
+pointings (:func:`upper_bound`), and the quadrant detector reads the light's centroid
+(:func:`light_centroid`). Units: W and G in 1/m², directions unit ``[..., 3]``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from tensordict import TensorClass
+
+from waterair.physics.channel.geometry import Transceiver
+from waterair.physics.optics import angle_between, arrival_gain, departure_gain
+
+UPPER_BOUND_ITERATIONS = 4
+"""Alternating ascent steps of :func:`upper_bound` from each of its two starts."""
+
+
+class LightSamples(TensorClass):
+    """The light reaching each link's receiver as N weighted rays (leading shape ``[B, N]``).
+
+    ``weight`` W (1/m², ≥ 0; padding samples have 0), ``departure`` u1 and ``arrival`` u2 (unit,
+    ``[B, N, 3]``: from T toward the surface, from the surface toward R).
+    """
+
+    weight: torch.Tensor
+    departure: torch.Tensor
+    arrival: torch.Tensor
+
+
+def pointed_gains(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
+    """Each sample's share ``[B, N]`` of eq. (4.7) (1/m²) for pointings tx_dir (up), rx_dir (down) ``[B, 3]``."""
+    alpha_d = angle_between(tx_dir.unsqueeze(1), light.departure)
+    alpha_a = angle_between(rx_dir.unsqueeze(1), -light.arrival)
+    g_d = departure_gain(alpha_d, optics.divergence, optics.wavelength)
+    g_a = arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index)
+    return light.weight * g_d * g_a
+
+
+def received_gain(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
+    """G of eq. (4.7), ``[B]`` (1/m²)."""
+    return pointed_gains(light, tx_dir, rx_dir, optics).sum(-1)
+
+
+def upper_bound(
+    light: LightSamples, optics: Transceiver, iterations: int = UPPER_BOUND_ITERATIONS
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The best received gain over both pointings, and the pointings that give it (docs/model.md §4.5).
+
+    Returns (G_UB ``[B]`` (1/m²), transmitter direction ``[B, 3]`` (up), receiver boresight
+    ``[B, 3]`` (down)). Alternating ascent from two starts, the better kept: the transmitter moves
+    by a mean-shift step (the G_D-weighted mean of the departures, which climbs a Gaussian beam's
+    sum monotonically), the receiver to the weighted mean arrival (which maximises Σ c cos α_A
+    exactly while the light stays inside the field of view). Starts: the weighted mean of all
+    samples, and the single brightest sample. With one sample it is the paper's
+    G_UB = W n_c² / sin² ω_A. docs/model.md §4.5 says how close to a brute-force search it lands.
+    """
+    weight = light.weight
+    mean = (
+        _direction(weight, light.departure, light.departure[:, 0]),
+        _direction(weight, -light.arrival, -light.arrival[:, 0]),
+    )
+    brightest = weight.argmax(-1, keepdim=True).unsqueeze(-1).expand(-1, 1, 3)
+    single = light.departure.gather(1, brightest)[:, 0], -light.arrival.gather(1, brightest)[:, 0]
+    results = [_ascend(light, tx, rx, optics, iterations) for tx, rx in (mean, single)]
+    (gain_a, tx_a, rx_a), (gain_b, tx_b, rx_b) = results
+    better = (gain_b > gain_a).unsqueeze(-1)
+    return torch.maximum(gain_a, gain_b), torch.where(better, tx_b, tx_a), torch.where(better, rx_b, rx_a)
+
+
+def light_centroid(
+    light: LightSamples, shares: torch.Tensor, rx_dir: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The light's centroid on the detector as an arrival direction ``[B, 3]``, and whether any is seen ``[B]``.
+
+    ``shares`` are the samples' contributions to G (:func:`pointed_gains`): only light within the
+    field of view and the beam counts. A link with none gets the boresight's reverse (no reading).
+    """
+    seen = shares.sum(-1) > 0
+    return _direction(shares, light.arrival, -rx_dir), seen
+
+
+def _ascend(light: LightSamples, tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver, iterations: int):
+    """Alternating ascent of eq. (4.7) from (tx, rx); returns (gain, tx, rx)."""
+    for _ in range(iterations):
+        alpha_d = angle_between(tx.unsqueeze(1), light.departure)
+        g_d = departure_gain(alpha_d, optics.divergence, optics.wavelength)
+        g_a = arrival_gain(angle_between(rx.unsqueeze(1), -light.arrival), optics.half_fov, optics.concentrator_index)
+        share = light.weight * g_d * g_a
+        tx = _direction(share * torch.cos(alpha_d), light.departure, tx)
+        g_d = departure_gain(angle_between(tx.unsqueeze(1), light.departure), optics.divergence, optics.wavelength)
+        rx = _direction(light.weight * g_d, -light.arrival, rx)
+    return received_gain(light, tx, rx, optics), tx, rx
+
+
+def _direction(weights: torch.Tensor, directions: torch.Tensor, fallback: torch.Tensor) -> torch.Tensor:
+    """The unit weighted mean of ``directions`` ``[B, N, 3]``, or ``fallback`` ``[B, 3]`` where it vanishes."""
+    total = (weights.unsqueeze(-1) * directions).sum(1)
+    norm = torch.linalg.vector_norm(total, dim=-1, keepdim=True)
+    tiny = torch.finfo(total.dtype).tiny
+    return torch.where(norm > math.sqrt(tiny), total / norm.clamp(min=math.sqrt(tiny)), fallback)
