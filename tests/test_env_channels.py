@@ -1,0 +1,73 @@
+"""The environment on each channel model (env.channel, docs/environment.md): specs, finiteness, the
+compiled step, the bound and the paper's model kept as it was."""
+
+import pytest
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from torchrl.envs.utils import check_env_specs
+
+from waterair.envs.env import WaterAirEnv
+
+SMALL = {"n_freq": 12, "n_dir": 6, "n_wavenumbers": 12, "montecarlo_rays": 200, "montecarlo_facets": 4}
+OCEAN = {"spectrum": "elfouhaily", "n_dir": 8}
+
+
+@pytest.mark.parametrize("channel", ["full", "montecarlo"])
+@pytest.mark.parametrize("spectrum", ["jonswap", "elfouhaily"])
+def test_check_env_specs_for_each_channel(channel, spectrum):
+    env = WaterAirEnv(num_envs=3, seed=0, channel=channel, spectrum=spectrum, observation_extras=("spot",), **SMALL)
+    check_env_specs(env)
+
+
+@settings(max_examples=12, deadline=None)
+@given(
+    channel=st.sampled_from(["single_path", "full", "montecarlo"]),
+    spectrum=st.sampled_from(["jonswap", "elfouhaily"]),
+    wind=st.floats(0.5, 40.0),
+    offset=st.floats(0.0, 2.0),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_no_nan_or_inf_on_any_channel_whatever_the_sea(channel, spectrum, wind, offset, seed):
+    env = WaterAirEnv(
+        num_envs=4, seed=seed, channel=channel, spectrum=spectrum, wind=wind, offset_ratio=offset, **SMALL
+    )
+    actions = 2.0 * torch.rand(4, 4, 4, generator=torch.Generator().manual_seed(seed % 1000)) - 1.0
+    td = env.reset()
+    for action in actions:
+        td = env.step(td.set("action", action))["next"]
+        for key in ("observation", "reward", "gain", "gain_upper_bound", "intensity"):
+            assert torch.isfinite(td[key]).all(), key
+        assert (td["gain"] <= td["gain_upper_bound"] * (1 + 1e-4) + 1e-30).all()
+
+
+@pytest.mark.slow
+def test_compiled_and_eager_full_channel_agree():
+    """The full channel on the ocean sea compiles into the step's graph: 40 steps, as the
+    compiled-step tests allow (1e-4 relative)."""
+    config = {"num_envs": 16, "seed": 5, "channel": "full", "max_steps": 10**6, **OCEAN}
+    actions = 0.3 * torch.randn(40, 16, 4, generator=torch.Generator().manual_seed(0))
+    traces = []
+    for compiled in (False, True):
+        env = WaterAirEnv(compile_kernel=compiled, **config)
+        td, trace = env.reset(), []
+        for action in actions:
+            td = env.step(td.set("action", action))["next"]
+            trace.append(torch.stack((td["gain"], td["gain_upper_bound"], td["intensity"]), -1))
+        traces.append(torch.stack(trace))
+    eager, compiled_trace = traces
+    assert eager[..., 0].abs().max() > 0
+    torch.testing.assert_close(compiled_trace, eager, rtol=1e-4, atol=1e-7)
+
+
+def test_the_full_channels_upper_bound_does_not_depend_on_the_policy():
+    """Two envs on the same seas, pointed differently for 5 steps, see the same upper bound (the
+    lattice and the bound depend on the sea and the ends only), and different gains."""
+    base = {"num_envs": 8, "seed": 2, "channel": "full", **OCEAN}
+    first, second = WaterAirEnv(**base), WaterAirEnv(**base)
+    a, b = first.reset(), second.reset()
+    for _ in range(5):
+        a = first.step(a.set("action", torch.zeros(8, 4)))["next"]
+        b = second.step(b.set("action", 0.5 * torch.ones(8, 4)))["next"]
+    torch.testing.assert_close(a["gain_upper_bound"], b["gain_upper_bound"])
+    assert not torch.allclose(a["gain"], b["gain"])
