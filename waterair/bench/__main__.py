@@ -16,6 +16,10 @@ meaningful. Timings are wall-clock medians after a warm-up.
 * ``summary``: the speed targets as ratios, from the JSON files of the suites above (:mod:`.summary`).
 * ``census``: refraction points per link on the measured-slope sea, their spread and the brightest
   point's share of the power (:mod:`.census`).
+* ``channel``: env-steps per second of each channel model (``single_path``, ``full``) on each sea
+  (paper, ocean), in one run (:mod:`.env`).
+* ``montecarlo``: the full channel against the Monte Carlo reference on the measured-slope sea:
+  mean power, scintillation, correlation, and the tracer's rays per second (:mod:`.montecarlo`).
 * ``evaluate``: the default evaluation (shipped policies, every baseline, S1-S3), all policies in
   one batch against one rollout per policy (:mod:`.evaluate`).
 
@@ -32,8 +36,9 @@ import torch
 from waterair.bench.census import bench_census, census_table
 from waterair.bench.common import machine
 from waterair.bench.controllers import bench_controllers, controllers_table
-from waterair.bench.env import ENV_HEADER, bench_env
+from waterair.bench.env import ENV_HEADER, bench_channels, bench_env
 from waterair.bench.evaluate import bench_evaluate, evaluate_table
+from waterair.bench.montecarlo import MONTECARLO_HEADER, bench_montecarlo, montecarlo_table
 from waterair.bench.physics import bench_physics, physics_table
 from waterair.bench.quality import bench_quality, quality_table
 from waterair.bench.summary import main as summary
@@ -62,6 +67,15 @@ def main(argv: list[str] | None = None) -> int:
     env.add_argument(
         "--centroid-sizes", type=int, nargs="*", default=[1, 16], help="batch sizes for the centroid solver"
     )
+    channel = sub.add_parser("channel", help="env-steps/s of each channel model on each sea, in one run")
+    channel.add_argument("--sizes", type=int, nargs="+", default=[16, 1024], help="batch sizes B")
+    montecarlo = sub.add_parser("montecarlo", help="the full channel against the Monte Carlo reference")
+    montecarlo.add_argument("--winds", type=float, nargs="+", default=[4.0, 12.0, 20.0], help="U10 (m/s)")
+    montecarlo.add_argument("--seas", type=int, default=16, help="sea realisations (links) per wind")
+    montecarlo.add_argument("--steps", type=int, default=20, help="steps of 0.05 s per sea")
+    montecarlo.add_argument("--rays", type=int, default=2000, help="surface rays per link and step")
+    montecarlo.add_argument("--facets", type=int, default=64, help="unresolved-slope draws per surface ray")
+    montecarlo.add_argument("--offset", type=float, default=0.1, help="offset ratio")
     evaluation = sub.add_parser("evaluate", help="the default evaluate.py work, batched vs one policy at a time")
     training = sub.add_parser("training", help="DDPG update vs bare PyTorch, train.py vs Stable-Baselines3")
     training.add_argument("--updates", type=int, default=300, help="timed updates (median reported)")
@@ -88,12 +102,13 @@ def main(argv: list[str] | None = None) -> int:
     controllers.add_argument("--batch", type=int, default=1024, help="batch size B")
     controllers.add_argument("--steps", type=int, default=50, help="steps per timed rollout")
     controllers.add_argument("--repeats", type=int, default=3, help="timed rollouts per policy (median reported)")
-    for p in (physics, env):
+    for p in (physics, env, channel, montecarlo):
         p.add_argument("--dtype", choices=["float32", "float64"], default="float32")
     training.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
-    for p in (physics, env, evaluation, controllers):
+    for p in (physics, env, evaluation, controllers, channel, montecarlo):
         p.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto")
-        p.add_argument("--compile", action="store_true", help="evaluate the surface through torch.compile")
+        if p is not montecarlo:
+            p.add_argument("--compile", action="store_true", help="evaluate the surface through torch.compile")
         p.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
     args = parser.parse_args(argv)
     if args.suite == "summary":
@@ -122,6 +137,17 @@ def main(argv: list[str] | None = None) -> int:
     elif args.suite == "controllers":
         record = bench_controllers(args.batch, args.steps, args.repeats, args.compile, args.device)
         print(controllers_table(record))
+    elif args.suite == "channel":
+        print(f"channel benchmark: {device}, {'compiled' if args.compile else 'eager'} step\n\n{ENV_HEADER}")
+        record = bench_channels(args.sizes, args.compile, args.device, args.dtype)
+    elif args.suite == "montecarlo":
+        print(MONTECARLO_HEADER)
+        record = {"machine": machine(device, getattr(torch, args.dtype))}
+        dtype = getattr(torch, args.dtype)
+        record.update(
+            bench_montecarlo(args.winds, args.seas, args.steps, args.rays, args.facets, args.offset, device, dtype)
+        )
+        print("\n" + montecarlo_table(record))
     elif args.suite == "env":
         print(f"env benchmark: {device}, {'compiled' if args.compile else 'eager'} surface kernel\n\n{ENV_HEADER}")
         record = bench_env(args.sizes, args.centroid_sizes, args.compile, args.device, args.dtype)

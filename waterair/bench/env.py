@@ -27,7 +27,13 @@ SAMPLED_STEPS = 20
 """Steps over which the path solve's convergence is counted (outside the timed loop)."""
 
 
-def worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype: str) -> dict:
+SEAS = {"paper": {"spectrum": "jonswap"}, "ocean": {"spectrum": "elfouhaily", "n_dir": 16}}
+"""The seas of ``env/spectrum=paper|ocean`` (conf/env/spectrum)."""
+
+
+def worker(
+    batch: int, solver: str, compile_kernel: bool, device: str, dtype: str, channel: str = "single_path", sea="paper"
+) -> dict:
     """Time raw ``env.step`` and ``env.rollout`` at one batch size (runs inside the worker)."""
     baseline_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     start = time.perf_counter()
@@ -39,6 +45,8 @@ def worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype: st
         device=device,
         dtype=dtype,
         max_steps=10**6,
+        channel=channel,
+        **SEAS[sea],
     )
     td = env.reset()
     generator = torch.Generator().manual_seed(0)
@@ -71,6 +79,8 @@ def worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype: st
     return {
         "batch": batch,
         "solver": solver,
+        "channel": channel,
+        "sea": sea,
         "steps_timed": steps,
         "step_s": step_s,
         "env_steps_per_s": batch / step_s,
@@ -130,25 +140,37 @@ def compile_times(batch: int = 16) -> dict:
     return {"batch": batch, **record}
 
 
+def run_worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype: str, channel: str, sea: str):
+    """One :func:`worker` in a fresh process; its record."""
+    args = [sys.executable, "-m", "waterair.bench.env", str(batch), solver, str(int(compile_kernel))]
+    done = subprocess.run([*args, device, dtype, channel, sea], capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"env benchmark worker B={batch} {solver} {channel} failed:\n{done.stderr[-2000:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def bench_channels(sizes, compile_kernel: bool, device: str, dtype: str) -> dict:
+    """The channel models side by side, in one run: (channel, sea) for every B, each in its own process."""
+    rows = []
+    for batch in sizes:
+        for channel, sea in (("single_path", "paper"), ("full", "paper"), ("single_path", "ocean"), ("full", "ocean")):
+            rows.append(run_worker(batch, "newton", compile_kernel, device, dtype, channel, sea))
+            print(env_row(rows[-1]), flush=True)
+    resolved = resolve_device(device)
+    return {
+        "benchmark": "channel",
+        **machine(resolved, getattr(torch, dtype)),
+        "compiled_kernel": compile_kernel,
+        "rows": rows,
+    }
+
+
 def bench_env(sizes, centroid_sizes, compile_kernel: bool, device: str, dtype: str) -> dict:
     """Run every (B, solver) point in its own process and collect the records."""
     rows = []
     for solver, solver_sizes in (("newton", sizes), ("centroid", centroid_sizes)):
         for batch in solver_sizes:
-            args = [
-                sys.executable,
-                "-m",
-                "waterair.bench.env",
-                str(batch),
-                solver,
-                str(int(compile_kernel)),
-                device,
-                dtype,
-            ]
-            done = subprocess.run(args, capture_output=True, text=True, check=False)
-            if done.returncode != 0:
-                raise RuntimeError(f"env benchmark worker B={batch} {solver} failed:\n{done.stderr[-2000:]}")
-            rows.append(json.loads(done.stdout.strip().splitlines()[-1]))
+            rows.append(run_worker(batch, solver, compile_kernel, device, dtype, "single_path", "paper"))
             print(env_row(rows[-1]), flush=True)
     resolved = resolve_device(device)
     record = {
@@ -167,7 +189,7 @@ def bench_env(sizes, centroid_sizes, compile_kernel: bool, device: str, dtype: s
 
 
 ENV_HEADER = (
-    "| B | solver | env-steps/s (step loop) | env-steps/s (rollout) | evals/step | left to finish "
+    "| B | solver / channel, sea | env-steps/s (step loop) | env-steps/s (rollout) | evals/step | left to finish "
     "| steps finishing | floor ratio | peak memory (MB) |\n"
     "|---|---|---|---|---|---|---|---|---|"
 )
@@ -181,11 +203,21 @@ def env_row(r: dict) -> str:
         else "| – | – | – | – "
     )
     return (
-        f"| {r['batch']} | {r['solver']} | {r['env_steps_per_s']:,.0f} | {r['rollout_env_steps_per_s']:,.0f} "
+        f"| {r['batch']} | {_label(r)} | {r['env_steps_per_s']:,.0f} | {r['rollout_env_steps_per_s']:,.0f} "
         f"{solve}| {r['peak_memory_mb']:.0f} |"
     )
 
 
+def _label(r: dict) -> str:
+    if r.get("channel", "single_path") == "single_path" and r.get("sea", "paper") == "paper":
+        return r["solver"]
+    return f"{r['channel']}, {r['sea']}"
+
+
 if __name__ == "__main__":
-    batch_arg, solver_arg, compile_arg, device_arg, dtype_arg = sys.argv[1:6]
-    print(json.dumps(worker(int(batch_arg), solver_arg, bool(int(compile_arg)), device_arg, dtype_arg)))
+    batch_arg, solver_arg, compile_arg, device_arg, dtype_arg, channel_arg, sea_arg = sys.argv[1:8]
+    print(
+        json.dumps(
+            worker(int(batch_arg), solver_arg, bool(int(compile_arg)), device_arg, dtype_arg, channel_arg, sea_arg)
+        )
+    )

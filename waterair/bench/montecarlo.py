@@ -1,0 +1,137 @@
+"""The full channel against the Monte Carlo reference: ``python -m waterair.bench montecarlo``.
+
+For the measured-slope sea at each wind: ``seas`` links followed for ``steps`` steps of dt, each
+step traced by :func:`waterair.physics.montecarlo.trace` once and the hits weighted for three fixed
+pointings (straight facing, flat-sea Snell, and pointed at the fast model's brightest sample), and
+the fast model's gain (:func:`waterair.physics.channel.two_scale_light` around the tracked point)
+for the same pointings. Per wind and pointing: mean power ratio (fast / reference) with the
+reference's pooled standard error, scintillation index of each, per-step correlation; and the
+tracer's speed (surface rays and ray-facet pairs per second) and the comparison's wall time.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import torch
+
+from waterair.physics import LinkGeometry, SeaState, Transceiver, WaveSurface, flat_sea_point, solve_path
+from waterair.physics.channel import lattice_shape, received_gain, two_scale_light
+from waterair.physics.channel.lattice import beam_width
+from waterair.physics.montecarlo import standard_error, trace
+from waterair.physics.optics import unit_vector
+
+DT = 0.05
+"""Seconds between steps (the environment's dt)."""
+PROPOSAL_BEAMS = 2.0
+"""The tracer's proposal: this many beam widths around the calm-sea departure (covers straight facing)."""
+
+
+def bench_montecarlo(
+    winds: list[float], seas: int, steps: int, rays: int, facets: int, offset: float, device: torch.device, dtype
+) -> dict:
+    """Rows per (wind, pointing), plus the tracer's speed per wind."""
+    optics = Transceiver()
+    rows, speeds = [], []
+    for wind in winds:
+        sea = SeaState(wind=wind, spectrum="elfouhaily", n_dir=16)
+        surface = WaveSurface.sample(sea, seas, seed=0, dtype=dtype, device=device)
+        tx, rx = (v.to(device).expand(seas, 3).contiguous() for v in LinkGeometry(offset_ratio=offset).positions(dtype))
+        flat = flat_sea_point(tx, rx, optics.n_water, optics.n_air)
+        snell = unit_vector(flat - tx), unit_vector(flat - rx)
+        straight = torch.zeros_like(tx), torch.zeros_like(tx)
+        straight[0][:, 2], straight[1][:, 2] = 1.0, -1.0
+        basis, blur = lattice_shape(tx, rx, surface.unresolved, optics)
+        components = (surface.omega, surface.phase, surface.kx, surface.ky, surface.amplitude)
+        generator = torch.Generator(device=device).manual_seed(int(wind * 1000))
+        fast = {name: [] for name in ("straight", "snell", "brightest")}
+        reference = {name: [] for name in fast}
+        error = {name: [] for name in fast}
+        point, traced_s = None, 0.0
+        started = time.perf_counter()
+        for step in range(steps):
+            t = 10.0 + step * DT
+            path = solve_path(surface, tx, rx, t, init=None if point is None else point[:, :2])
+            point = path.point
+            time_now = torch.full((seas,), t, dtype=dtype, device=device)
+            light = two_scale_light(components, tx, rx, time_now, point[:, :2], basis, blur, optics)
+            index = light.weight.argmax(-1, keepdim=True).unsqueeze(-1).expand(-1, 1, 3)
+            brightest = light.departure.gather(1, index)[:, 0], -light.arrival.gather(1, index)[:, 0]
+            clock = time.perf_counter()
+            result = trace(
+                surface, tx, rx, t, optics, axis=snell[0], reference=unit_vector(rx - flat),
+                width=PROPOSAL_BEAMS * beam_width(optics), rays=rays, facets=facets, generator=generator,
+            )  # fmt: skip
+            if device.type == "cuda":
+                torch.cuda.synchronize()
+            traced_s += time.perf_counter() - clock
+            for name, (tx_dir, rx_dir) in (("straight", straight), ("snell", snell), ("brightest", brightest)):
+                fast[name].append(received_gain(light, tx_dir, rx_dir, optics).double().cpu())
+                gain, se = standard_error(result, tx_dir, rx_dir, optics)
+                reference[name].append(gain.double().cpu())
+                error[name].append(se.double().cpu())
+        wall_s = time.perf_counter() - started
+        speeds.append(
+            {
+                "wind": wind,
+                "rays_per_s": seas * steps * rays / traced_s,
+                "ray_facets_per_s": seas * steps * rays * facets / traced_s,
+                "wall_s": wall_s,
+            }
+        )
+        for name in fast:
+            f, r, e = (torch.stack(values) for values in (fast[name], reference[name], error[name]))
+            rows.append({"wind": wind, "pointing": name, **compare(f, r, e)})
+            print(montecarlo_row(rows[-1]), flush=True)
+    return {
+        "seas": seas,
+        "steps": steps,
+        "rays": rays,
+        "facets": facets,
+        "offset": offset,
+        "dtype": str(dtype).removeprefix("torch."),
+        "rows": rows,
+        "speed": speeds,
+    }
+
+
+def compare(fast: torch.Tensor, reference: torch.Tensor, error: torch.Tensor) -> dict:
+    """Statistics of ``[steps, seas]`` gains: the fast model against the reference with its errors."""
+    mean_ref = reference.mean()
+    pooled = error.pow(2).sum().sqrt() / reference.numel() / mean_ref
+    f, r = fast.flatten(), reference.flatten()
+    correlation = torch.corrcoef(torch.stack((f, r)))[0, 1]
+    noise = error.pow(2).mean()  # the reference's own variance, taken out of its scintillation index
+    return {
+        "ratio": (fast.mean() / mean_ref).item(),
+        "pooled_se": pooled.item(),
+        "si_fast": (f.var() / f.mean() ** 2).item(),
+        "si_reference": ((r.var() - noise) / r.mean() ** 2).item(),
+        "correlation": correlation.item(),
+        "noise_ceiling": math.sqrt(max(0.0, 1.0 - (noise / r.var()).item())),
+    }
+
+
+MONTECARLO_HEADER = (
+    "| U10 (m/s) | pointing | mean ratio | pooled SE | SI fast | SI reference | correlation | noise ceiling |\n"
+    "|---|---|---|---|---|---|---|---|"
+)
+
+
+def montecarlo_row(row: dict) -> str:
+    return (
+        f"| {row['wind']:g} | {row['pointing']} | {row['ratio']:.3f} | {100 * row['pooled_se']:.2f} % "
+        f"| {row['si_fast']:.3f} | {row['si_reference']:.3f} | {row['correlation']:.3f} | {row['noise_ceiling']:.3f} |"
+    )
+
+
+def montecarlo_table(record: dict) -> str:
+    lines = [MONTECARLO_HEADER, *(montecarlo_row(row) for row in record["rows"])]
+    lines.append("")
+    lines += [
+        f"U10 {s['wind']:g} m/s: {s['rays_per_s']:,.0f} rays/s ({s['ray_facets_per_s']:,.0f} ray-facets/s), "
+        f"wall {s['wall_s']:.0f} s"
+        for s in record["speed"]
+    ]
+    return "\n".join(lines)
