@@ -5,7 +5,7 @@ PYTHON := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= outputs
 RUN    ?= $(OUT)/train/$(shell date +%Y-%m-%d/%H-%M-%S)
-SOURCES := waterair tests train.py evaluate.py
+SOURCES := waterair hydra_plugins tests train.py evaluate.py
 
 .PHONY: install train evaluate test figures bench clean
 

@@ -36,6 +36,8 @@ NETWORKS = ("mlp",)
 # (oc.select would not do: it keeps resume's explicit null.) Registered at import, before Hydra
 # composes the config.
 OmegaConf.register_new_resolver("run_dir_or", lambda run, default: default if run is None else run, replace=True)
+# A Slurm job asks for one GPU when the run asks for cuda (hydra.launcher.gpus_per_node, docs/training.md).
+OmegaConf.register_new_resolver("gpus_for_device", lambda device: 1 if device == "cuda" else None, replace=True)
 
 
 def validate(cfg: DictConfig) -> None:
