@@ -22,6 +22,8 @@ import io
 import logging
 import os
 import shutil
+import subprocess
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,6 +39,10 @@ from waterair.core.files import atomic_write_json
 
 log = logging.getLogger(__name__)
 
+POLL_S = 5.0
+"""Seconds between two looks at the jobs still running."""
+VANISHED_AFTER_S = 60.0
+"""A job neither queued nor in Slurm's accounting for this long has left without running."""
 COMPILE_CACHE = ".compile_cache"
 """The torch compile cache of a Slurm sweep, under its root (``TORCHINDUCTOR_CACHE_DIR``)."""
 
@@ -119,24 +125,56 @@ if BaseSubmititLauncher is not None:
                 raise LaunchError(f"error: the scheduler refused the jobs: {lines[-1].strip()}") from None
             for job, number, overrides in zip(jobs, numbers, job_overrides, strict=True):
                 _record(root / str(number), job, overrides, "SUBMITTED")
+            vanished = self._wait(jobs)
             return [
-                self._outcome(job, root / str(number), overrides)
+                self._outcome(job, root / str(number), overrides, job.job_id in vanished)
                 for job, number, overrides in zip(jobs, numbers, job_overrides, strict=True)
             ]
 
-        def _outcome(self, job, folder: Path, overrides: Sequence[str]) -> JobReturn:
+        def _wait(self, jobs) -> set[str]:
+            """Wait until every job has ended; the ids of those that left the queue without a trace.
+
+            Slurm keeps no accounting record of an array job cancelled before it started, so submitit
+            would wait for it forever: a job that is neither queued nor known to sacct for
+            :data:`VANISHED_AFTER_S` is taken to have left without running.
+            """
+            waiting, vanished, missing_since = list(jobs), set(), {}
+            while waiting:
+                queued = _queued() if self._EXECUTOR == "slurm" else None  # local jobs always end with a state
+                for job in list(waiting):
+                    if job.done():
+                        waiting.remove(job)
+                    elif queued is not None and job.job_id not in queued and job.state == "UNKNOWN":
+                        first = missing_since.setdefault(job.job_id, time.monotonic())
+                        if time.monotonic() - first > VANISHED_AFTER_S and not job.done(force_check=True):
+                            waiting.remove(job)
+                            vanished.add(job.job_id)
+                    else:
+                        missing_since.pop(job.job_id, None)
+                if waiting:
+                    time.sleep(POLL_S)
+            return vanished
+
+        def _outcome(self, job, folder: Path, overrides: Sequence[str], vanished: bool) -> JobReturn:
             """The job's own result once it has ended, or a failed result saying how it ended."""
             import submitit
 
             try:
+                if vanished:
+                    raise submitit.core.utils.UncompletedJobError("it left the queue before it started")
                 result = job.results()[0]
                 state = "COMPLETED"
             except submitit.core.utils.UncompletedJobError:
-                state = job.get_info(mode="force").get("State", "UNKNOWN")
+                state = "CANCELLED" if vanished else job.get_info(mode="force").get("State", "UNKNOWN")
                 stopped = JobStopped(f"job {folder.name} ended without a result ({state}); log: {job.paths.stderr}")
                 result = JobReturn(overrides=list(overrides), status=JobStatus.FAILED, _return_value=stopped)
             _record(folder, job, overrides, state)
             return result
+
+    def _queued() -> set[str] | None:
+        """The ids of the jobs in Slurm's queue, one per array task (``12_3``); None if squeue cannot tell."""
+        done = subprocess.run(["squeue", "--noheader", "--array", "--format=%i"], capture_output=True, text=True)
+        return set(done.stdout.split()) if done.returncode == 0 else None
 
     def _record(folder: Path, job, overrides: Sequence[str], state: str) -> None:
         from waterair.training.sweep import LAUNCH_FILE  # the summary's reader; imported when a job is recorded
