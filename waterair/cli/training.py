@@ -10,6 +10,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
+from waterair.cli.console import quiet_dependencies
 from waterair.core.files import atomic_write_text
 from waterair.envs.controllers import CONTROLLERS
 from waterair.training import train, validate
@@ -34,6 +35,7 @@ def run(cfg: DictConfig, overrides: list[str], output_dir: str | Path, in_sweep:
     that raises logs its traceback into its own log and leaves its error, one line, in
     :data:`~waterair.training.sweep.ERROR_FILE` for the sweep's summary; the sweep goes on.
     """
+    quiet_dependencies()
     try:
         return _run(cfg, overrides, Path(output_dir))
     except Exception as error:

@@ -11,6 +11,7 @@ cache as warm when it holds compiled graphs.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
@@ -49,7 +50,8 @@ def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -
 
 def cache_state() -> str:
     """``warm`` if torch's compile cache holds compiled graphs (of any program), else ``cold``."""
-    from torch._inductor.runtime.cache_dir_utils import cache_dir
+    # The folder torch would use, found as torch finds it (its cache_dir() would also create it).
+    from torch._inductor.runtime.cache_dir_utils import default_cache_dir
 
-    graphs = Path(cache_dir()) / "fxgraph"
+    graphs = Path(os.environ.get("TORCHINDUCTOR_CACHE_DIR") or default_cache_dir()) / "fxgraph"
     return "warm" if graphs.is_dir() and any(graphs.iterdir()) else "cold"
