@@ -62,10 +62,11 @@ def check_slurm(launcher: DictConfig) -> None:
                 f"hydra.launcher.partition = {launcher.partition!r} is not a partition of this cluster; choose one "
                 f"of {', '.join(partitions)}"
             )
-    if not which("sbatch"):
+    missing = [command for command in ("sbatch", "srun") if not which(command)]
+    if missing:
         raise CommandLineError(
-            "hydra/launcher=submitit_slurm needs Slurm's sbatch on PATH: start the sweep on a machine that submits "
-            "to the cluster"
+            f"hydra/launcher=submitit_slurm needs Slurm's {' and '.join(missing)} on PATH: start the sweep on a "
+            f"machine that submits to the cluster"
         )
     with tempfile.TemporaryDirectory() as folder:
         params = OmegaConf.to_container(launcher, resolve=True)
