@@ -153,3 +153,23 @@ def test_the_dependencies_messages_are_silenced_by_name_and_no_other():
     logger.removeHandler(handler)
     assert [str(w.message) for w in seen] == ["torch._dynamo.config.another_option is deprecated"]
     assert [record.getMessage() for record in seen_records] == ["Graph break: something to look at"]
+
+
+@pytest.mark.slow
+def test_jobs_sbatch_refuses_after_the_checks_are_one_line_and_leave_no_sweep_folder(tmp_path):
+    # The scheduler accepts the test submission but refuses the array itself (e.g. a limit on array sizes).
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    refusal = "sbatch: error: Batch job submission failed: Invalid job array specification"
+    (bin_dir / "sbatch").write_text(f'#!/bin/sh\n[ "$1" = --test-only ] && exit 0\necho "{refusal}" >&2\nexit 1\n')
+    (bin_dir / "sbatch").chmod(0o755)
+    stub(bin_dir, "srun")
+    sweep = tmp_path / "sweep"
+    done = subprocess.run(
+        [sys.executable, "train.py", *SLURM, f"hydra.sweep.dir={sweep}"],
+        cwd=ROOT, capture_output=True, text=True, timeout=300,
+        env={"PATH": f"{bin_dir}:/usr/bin:/bin", "HOME": str(tmp_path)},
+    )  # fmt: skip
+    assert done.returncode == 1, done.stderr[-3000:]
+    assert done.stderr.strip().splitlines() == [f"error: the scheduler refused the jobs: {refusal}"]
+    assert not sweep.exists()

@@ -23,6 +23,7 @@ import logging
 import os
 import shutil
 import subprocess
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -45,10 +46,6 @@ VANISHED_AFTER_S = 60.0
 """A job neither queued nor in Slurm's accounting for this long has left without running."""
 COMPILE_CACHE = ".compile_cache"
 """The torch compile cache of a Slurm sweep, under its root (``TORCHINDUCTOR_CACHE_DIR``)."""
-
-
-class LaunchError(CompactHydraException):
-    """The scheduler refused the jobs: Hydra prints the message alone and exits with status 1."""
 
 
 class JobStopped(CompactHydraException):
@@ -122,7 +119,8 @@ if BaseSubmititLauncher is not None:
                 if initial_job_idx == 0:
                     remove_sweep_dir(root)
                 lines = [line for line in str(error).splitlines() if line.strip()] or ["no message"]
-                raise LaunchError(f"error: the scheduler refused the jobs: {lines[-1].strip()}") from None
+                # sys.exit, not an exception: Hydra follows any exception's message with a hint about HYDRA_FULL_ERROR
+                sys.exit(f"error: the scheduler refused the jobs: {lines[-1].strip()}")
             for job, number, overrides in zip(jobs, numbers, job_overrides, strict=True):
                 _record(root / str(number), job, overrides, "SUBMITTED")
             vanished = self._wait(jobs)
