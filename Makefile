@@ -5,9 +5,9 @@ PYTHON := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= outputs
 RUN    ?= $(OUT)/train/$(shell date +%Y-%m-%d/%H-%M-%S)
-SOURCES := waterair tests train.py evaluate.py
+SOURCES := waterair hydra_plugins tests train.py evaluate.py
 
-.PHONY: install train evaluate test figures bench clean
+.PHONY: install train evaluate test figures bench slurm-check clean
 
 install: $(STAMP)
 
@@ -46,6 +46,11 @@ bench: $(STAMP)
 	$(PYTHON) -m waterair.bench training --out $(OUT)/bench/training.json
 	$(PYTHON) -m waterair.bench evaluate --compile --out $(OUT)/bench/evaluate.json
 	$(PYTHON) -m waterair.bench summary $(OUT)/bench
+
+# As root on a Debian machine: install and start a private single-node Slurm with accounting, run sweeps
+# through hydra/launcher=submitit_slurm and check them, then stop what it started (scripts/slurm_check.sh).
+slurm-check: $(STAMP)
+	scripts/slurm_check.sh
 
 clean:
 	rm -rf $(VENV) *.egg-info .pytest_cache .ruff_cache

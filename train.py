@@ -9,6 +9,7 @@ import sys
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from waterair.cli import training
@@ -18,7 +19,8 @@ from waterair.cli.preflight import preflight
 @hydra.main(version_base="1.3", config_path="conf", config_name="config")
 def main(cfg: DictConfig) -> float:
     hydra_config = HydraConfig.get()
-    return training.run(cfg, list(hydra_config.overrides.task), hydra_config.runtime.output_dir)
+    in_sweep = hydra_config.mode == RunMode.MULTIRUN
+    return training.run(cfg, list(hydra_config.overrides.task), hydra_config.runtime.output_dir, in_sweep)
 
 
 if __name__ == "__main__":

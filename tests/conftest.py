@@ -11,6 +11,25 @@ from waterair.physics.channel import LinkGeometry
 ROOT = Path(__file__).resolve().parents[1]
 """The repository root (where train.py, evaluate.py and conf/ live)."""
 
+TINY = [
+    "env.num_envs=8",
+    "env.n_freq=16",
+    "env.n_dir=8",
+    "env.max_steps=50",
+    "collector.frames_per_batch=400",
+    "collector.init_random_frames=400",
+    "checkpoint.every_frames=800",
+    "eval.realisations=4",
+    "eval.steps=20",
+    "logger.progress_bar=false",
+    "buffer.capacity=20000",
+    "actor.hidden=[32,32]",
+    "critic.hidden=[32,32]",
+    "compile_update=false",  # compiling costs more than these tiny runs take
+    "env.compile_kernel=false",
+]
+"""Overrides that shrink a training run to seconds: a few links, a coarse sea, small networks, eager."""
+
 
 def compose_config(name: str, overrides=(), **kwargs):
     """``conf/NAME.yaml`` composed with ``overrides``, as train.py / evaluate.py would see it."""

@@ -1,13 +1,17 @@
 """Entry points a user can trust: a rejected command line exits with one line and writes nothing."""
 
+import logging
 import subprocess
 import sys
+import warnings
 
 import pytest
 import torch
-from conftest import ROOT
+from conftest import ROOT, compose_config
 
-from waterair.cli.preflight import jobs, one_line
+from waterair.cli import launch, training
+from waterair.cli.console import quiet_dependencies
+from waterair.cli.preflight import jobs, on_a_cpu, one_line, preflight
 
 SHIPPED = ROOT / "waterair" / "assets" / "default.pt"
 
@@ -69,3 +73,103 @@ def test_hydra_messages_become_one_line():
     assert one_line(ValueError("Could not override 'env.wnd'.\nTo append use +env.wnd=3")).startswith(
         "env.wnd is not a config key"
     )
+
+
+def stub(folder, name, output="", status=0):
+    """An executable ``folder/name`` that prints ``output`` and exits with ``status`` (a Slurm command)."""
+    path = folder / name
+    path.write_text(f"#!/bin/sh\nprintf '{output}'\nexit {status}\n")
+    path.chmod(0o755)
+
+
+SLURM = ["-m", "seed=0,1", "hydra/launcher=submitit_slurm"]
+REFUSED = "sbatch: error: Batch job submission failed: Requested node configuration is not available\\n"
+LAUNCHES = [
+    (
+        ["hydra.launcher.partition=gpux"],
+        {"sinfo": "debug\\ngpu\\n"},
+        "error: hydra.launcher.partition = 'gpux' is not a partition of this cluster; choose one of debug, gpu",
+    ),
+    (
+        ["hydra.launcher.partition=gpu"],
+        {"sinfo": "debug\\ngpu\\n"},
+        "error: hydra/launcher=submitit_slurm needs Slurm's sbatch",
+    ),
+    ([], {"sbatch": (REFUSED, 1), "srun": ""}, "error: sbatch --test-only refused: sbatch: error: Batch job"),
+    (["hydra.launcher.cpus_per_task=0"], {}, "error: hydra.launcher.cpus_per_task = 0 is out of range"),
+    (["hydra.launcher.cpus_per_tsk=2"], {}, "error: hydra.launcher.cpus_per_tsk is not a config key"),
+    (["agent.gamma=interval(0,0.5)"], {}, "error: agent.gamma=interval(0,0.5): only hydra/sweeper=optuna samples"),
+]
+"""Launch problems, each with the Slurm commands on PATH (what they print, their exit status) and its line."""
+
+
+@pytest.mark.parametrize("overrides,commands,message", LAUNCHES, ids=[" ".join(c[0]) or "sbatch" for c in LAUNCHES])
+def test_a_sweep_the_cluster_cannot_run_is_refused_in_one_line(overrides, commands, message, tmp_path, monkeypatch):
+    for name, answer in commands.items():
+        stub(tmp_path, name, *(answer if isinstance(answer, tuple) else (answer,)))
+    monkeypatch.setenv("PATH", str(tmp_path))  # the stubs, and no other Slurm command
+    before = tree(ROOT / "outputs")
+    with pytest.raises(SystemExit) as stop:
+        preflight("config", [*SLURM, *overrides], training.check)
+    assert str(stop.value.code).startswith(message) and "\n" not in str(stop.value.code)
+    assert tree(ROOT / "outputs") == before
+
+
+def test_a_missing_launcher_package_is_named_with_what_to_install(monkeypatch):
+    monkeypatch.setattr(launch, "find_spec", lambda name: None)
+    with pytest.raises(SystemExit) as stop:
+        preflight("config", SLURM, training.check)
+    assert str(stop.value.code).startswith("error: hydra/launcher=submitit_slurm needs the package submitit")
+    error = ValueError("In 'hydra/config': Could not find 'hydra/sweeper/optuna'\n\nAvailable options in "
+                       "'hydra/sweeper':\n\tbasic\n\tgrid\nConfig search path:\n\tprovider=hydra")  # fmt: skip
+    assert one_line(error).startswith("hydra/sweeper=optuna needs the package hydra-optuna-sweeper")
+
+
+def test_a_slurm_sweep_asking_for_cuda_is_checked_on_a_cpu_here_and_a_search_at_its_ends():
+    # The jobs' machines have the GPU, not this one: device=cuda passes here and is checked in each job.
+    assert on_a_cpu(compose_config("config", ["device=cuda"])).env.device == "cpu"
+    search = ["-m", "hydra/sweeper=optuna", "agent.gamma=interval(0,0.5)", "env/sea=choice(calm,rough)"]
+    assert [job[1:] for job in jobs(search, None, search=True)] == [
+        ["agent.gamma=0.0", "env/sea=calm"],
+        ["agent.gamma=0.5", "env/sea=calm"],
+        ["agent.gamma=0.0", "env/sea=rough"],
+    ]
+
+
+def test_the_dependencies_messages_are_silenced_by_name_and_no_other():
+    logger, seen_records = logging.getLogger("torch._dynamo.variables.ctx_manager"), []
+    handler = logging.Handler()
+    handler.emit = seen_records.append
+    logger.addHandler(handler)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        quiet_dependencies()
+        warnings.warn(
+            "torch._dynamo.config.inline_inbuilt_nn_modules is deprecated and does nothing", FutureWarning, stacklevel=1
+        )
+        warnings.warn("torch._dynamo.config.another_option is deprecated", FutureWarning, stacklevel=1)
+        logger.warning("Profiler record function %s will be ignored", "record_function")
+        logger.warning("Graph break: something to look at")
+    logger.removeHandler(handler)
+    assert [str(w.message) for w in seen] == ["torch._dynamo.config.another_option is deprecated"]
+    assert [record.getMessage() for record in seen_records] == ["Graph break: something to look at"]
+
+
+@pytest.mark.slow
+def test_jobs_sbatch_refuses_after_the_checks_are_one_line_and_leave_no_sweep_folder(tmp_path):
+    # The scheduler accepts the test submission but refuses the array itself (e.g. a limit on array sizes).
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    refusal = "sbatch: error: Batch job submission failed: Invalid job array specification"
+    (bin_dir / "sbatch").write_text(f'#!/bin/sh\n[ "$1" = --test-only ] && exit 0\necho "{refusal}" >&2\nexit 1\n')
+    (bin_dir / "sbatch").chmod(0o755)
+    stub(bin_dir, "srun")
+    sweep = tmp_path / "sweep"
+    done = subprocess.run(
+        [sys.executable, "train.py", *SLURM, f"hydra.sweep.dir={sweep}"],
+        cwd=ROOT, capture_output=True, text=True, timeout=300,
+        env={"PATH": f"{bin_dir}:/usr/bin:/bin", "HOME": str(tmp_path)},
+    )  # fmt: skip
+    assert done.returncode == 1, done.stderr[-3000:]
+    assert done.stderr.strip().splitlines() == [f"error: the scheduler refused the jobs: {refusal}"]
+    assert not sweep.exists()

@@ -1,5 +1,6 @@
 """train.py and waterair.training: short runs, resume, a kill at the worst moment, sweeps, config errors."""
 
+import csv
 import json
 import math
 import os
@@ -12,7 +13,7 @@ from pathlib import Path
 
 import pytest
 import torch
-from conftest import ROOT, compose_config
+from conftest import ROOT, TINY, compose_config
 from omegaconf import OmegaConf
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
@@ -24,23 +25,6 @@ from waterair.evaluation.scenarios import Scenario
 from waterair.training import train
 from waterair.training.resume import plan_resume
 
-TINY = [
-    "env.num_envs=8",
-    "env.n_freq=16",
-    "env.n_dir=8",
-    "env.max_steps=50",
-    "collector.frames_per_batch=400",
-    "collector.init_random_frames=400",
-    "checkpoint.every_frames=800",
-    "eval.realisations=4",
-    "eval.steps=20",
-    "logger.progress_bar=false",
-    "buffer.capacity=20000",
-    "actor.hidden=[32,32]",
-    "critic.hidden=[32,32]",
-    "compile_update=false",  # compiling costs more than these tiny runs take
-    "env.compile_kernel=false",
-]
 SCALARS = {
     "train/episode_reward",
     "train/mean_gain",
@@ -200,25 +184,32 @@ def test_a_run_killed_between_buffer_dump_and_checkpoint_resumes_a_consistent_st
 
 
 @pytest.mark.slow
-def test_multirun_with_joblib_writes_a_summary(tmp_path):
+def test_a_sweep_with_a_failed_job_summarises_the_others_and_exits_with_one_line(tmp_path):
+    # Job 1's replay buffer folder is a file: it fails once it stores its first batch, after the checks.
+    scratch = f"buffer.scratch_dir={tmp_path}/scratch-0,/dev/null,{tmp_path}/scratch-2"
     done = run_cli(
         "-m",
         *TINY,
         "total_frames=800",
-        "env.wind=8,12",
+        "buffer=memmap",
+        scratch,
         "hydra/launcher=joblib",
-        "hydra.launcher.n_jobs=2",
+        "hydra.launcher.n_jobs=3",
         f"hydra.sweep.dir={tmp_path}",
         env={**os.environ, "OMP_NUM_THREADS": "1"},
     )
-    assert done.returncode == 0, done.stderr[-3000:]
-    lines = (tmp_path / "summary.csv").read_text().splitlines()
-    assert len(lines) == 3
-    assert "env.wind=8" in lines[1] and "env.wind=12" in lines[2]
-    assert "agent/mean_gain" in lines[0]
+    assert done.returncode == 1, done.stderr[-3000:]
+    error = done.stderr.strip().splitlines()[-1]
+    assert error.startswith("error: 1 of 3 jobs did not finish: job 1 (buffer.scratch_dir=/dev/null) failed: ")
+    assert "NotADirectoryError" in error and f"(log: {tmp_path / '1' / 'train.log'})" in error
+    assert "Traceback" in (tmp_path / "1" / "train.log").read_text()
+    with (tmp_path / "summary.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert [row["status"] for row in rows] == ["finished", "failed", "finished"]
+    assert rows[0]["agent/mean_gain"] and not rows[1]["agent/mean_gain"]
     table = (tmp_path / "summary.md").read_text()
-    assert table.count("| 0 | `") == 1 and table.count("| 1 | `") == 1 and "best − worst" in table
-    assert table.splitlines()[0].endswith("| flat-Snell | straight facing |")
+    assert table.count("| 0 | `") == 1 and table.count("| 2 | `") == 1 and "best − worst" in table
+    assert "| 1 | `buffer.scratch_dir=/dev/null` | failed | NotADirectoryError" in table
     png = tmp_path / "learning_curves.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
+from waterair.cli.console import quiet_dependencies
 from waterair.evaluation.report import write_outputs
 from waterair.evaluation.runner import evaluate, prepare
 
@@ -20,6 +21,7 @@ def check(cfg: DictConfig, overrides: list[str]) -> None:
 
 def run(cfg: DictConfig, output_dir: str | Path) -> None:
     """Evaluate, log one line per rollout with its time, write the outputs and say where they are."""
+    quiet_dependencies()
     out = Path(output_dir)
     result = evaluate(cfg, progress=log.info)
     written = write_outputs(result, out, cfg, physics=cfg.physics_figures)

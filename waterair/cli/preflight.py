@@ -3,8 +3,9 @@
 ``train.py`` and ``evaluate.py`` call :func:`preflight` first. It composes the config exactly as
 Hydra will (every job of a ``-m`` sweep), refuses keys the config does not have (``foo=1`` and
 ``+foo=1`` alike: a typo must not silently start a run), refuses removed keys (``~key``), and
-runs the program's own validation. Any problem exits with status 1 and one line on stderr, before
-Hydra creates a run directory. Adding a whole config group with ``+group=option`` stays allowed.
+runs the program's own validation. A sweep's launcher is checked too (:mod:`waterair.cli.launch`).
+Any problem exits with status 1 and one line on stderr, before Hydra creates a run directory.
+Adding a whole config group with ``+group=option`` stays allowed.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from waterair.cli.errors import CommandLineError
+from waterair.cli.launch import check_launcher, runs_elsewhere
 from waterair.training.config import CONF_DIR
 
 PASS_THROUGH = {
@@ -30,19 +33,30 @@ PASS_THROUGH = {
 MULTIRUN = {"-m", "--multirun"}
 MAX_JOBS = 256
 """A sweep with more jobs is checked on its first MAX_JOBS jobs (every value still appears)."""
-
-
-class CommandLineError(ValueError):
-    """A command line that must not start: the message is one line."""
+PLUGINS = {
+    "hydra/launcher=submitit_slurm": "hydra-submitit-launcher",
+    "hydra/launcher=submitit_local": "hydra-submitit-launcher",
+    "hydra/launcher=joblib": "hydra-joblib-launcher",
+    "hydra/sweeper=optuna": "hydra-optuna-sweeper",
+}
+"""Hydra options that come with a package: the package to install when the option is missing."""
 
 
 def preflight(config_name: str, argv: Sequence[str], check: Callable[[DictConfig, list[str]], None]) -> None:
-    """Compose every job of ``argv`` and ``check(cfg, overrides)`` each; exit with one line on a problem."""
+    """Compose every job of ``argv`` and ``check(cfg, overrides)`` each, then a sweep's launcher; exit with
+    one line on a problem. A job that a scheduler runs on other machines is checked as on a CPU here
+    (``device=cuda`` is checked where it runs)."""
     if any(arg.split("=")[0] in PASS_THROUGH for arg in argv):
         return
     try:
-        for overrides in jobs(argv):
-            check(compose_checked(config_name, overrides), overrides)
+        hydra = sweep_config(config_name, argv) if any(arg in MULTIRUN for arg in argv) else None
+        remote = hydra is not None and runs_elsewhere(hydra)
+        search = hydra is not None and hydra.runtime.choices.get("hydra/sweeper") == "optuna"
+        for overrides in jobs(argv, hydra, search):
+            cfg = compose_checked(config_name, overrides)
+            check(on_a_cpu(cfg) if remote else cfg, overrides)
+        if hydra is not None:
+            check_launcher(hydra)
     except (CommandLineError, ValueError) as error:
         sys.exit(f"error: {error}")
     except (OmegaConfBaseException, HydraException) as error:  # a key missing or of the wrong type
@@ -51,17 +65,66 @@ def preflight(config_name: str, argv: Sequence[str], check: Callable[[DictConfig
         sys.exit(f"error: a config value has the wrong type ({error})")
 
 
-def jobs(argv: Sequence[str]) -> list[list[str]]:
-    """The override lists of every job ``argv`` starts: one, or each job of a ``-m`` sweep."""
+def jobs(argv: Sequence[str], hydra: DictConfig | None = None, search: bool = False) -> list[list[str]]:
+    """The override lists of every job ``argv`` starts: one, or each job of a ``-m`` sweep.
+
+    A sweep's values come from the command line and from ``hydra.sweeper.params`` in ``hydra`` (the
+    composed ``hydra`` node). A search (``search``: the Optuna sweeper) is checked at each of its
+    values and at both ends of each interval, the other keys at their first value.
+    """
     overrides = [arg for arg in argv if not arg.startswith("-")]
     if not any(arg in MULTIRUN for arg in argv):
         return [overrides]
+    params = hydra.sweeper.get("params") if hydra is not None else None
+    swept = [f"{key}={value}" for key, value in (params or {}).items()]
     try:
-        parsed = OverridesParser.create().parse_overrides(overrides)
+        parsed = OverridesParser.create().parse_overrides([*swept, *overrides])
     except HydraException as error:
         raise CommandLineError(one_line(error)) from None
-    batches = BasicSweeper.split_arguments(parsed, None)
-    return [job for batch in batches for job in batch][:MAX_JOBS]
+    if not search:
+        interval = next((o for o in parsed if o.is_sweep_override() and not o.is_discrete_sweep()), None)
+        if interval is not None:
+            raise CommandLineError(
+                f"{interval.input_line}: only hydra/sweeper=optuna samples from an interval; a grid takes a,b,c "
+                f"or range(start,stop,step)"
+            )
+        batches = BasicSweeper.split_arguments(parsed, None)
+        return [job for batch in batches for job in batch][:MAX_JOBS]
+    values = [(override.get_key_element(), _search_values(override)) for override in parsed]
+    first = [f"{key}={choices[0]}" for key, choices in values]
+    found = [first]
+    for index, (key, choices) in enumerate(values):
+        found += [[*first[:index], f"{key}={value}", *first[index + 1 :]] for value in choices[1:]]
+    return found[:MAX_JOBS]
+
+
+def sweep_config(config_name: str, argv: Sequence[str]) -> DictConfig:
+    """The ``hydra`` node of a sweep's config: its launcher, its sweeper and their choices."""
+    try:
+        parsed = OverridesParser.create().parse_overrides([arg for arg in argv if not arg.startswith("-")])
+    except HydraException as error:
+        raise CommandLineError(one_line(error)) from None
+    plain = [override.input_line for override in parsed if not override.is_sweep_override()]
+    try:
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            return compose(config_name=config_name, overrides=plain, return_hydra_config=True).hydra
+    except (HydraException, OmegaConfBaseException) as error:
+        raise CommandLineError(one_line(error)) from None
+
+
+def on_a_cpu(cfg: DictConfig) -> DictConfig:
+    """``cfg`` with ``device`` and ``env.device`` on the CPU: the checks a machine without the job's GPU can make."""
+    devices = {"device": "cpu", "env": {"device": "cpu"}}
+    return OmegaConf.merge(cfg, devices) if "cuda" in (cfg.device, cfg.env.device) else cfg
+
+
+def _search_values(override) -> list[str]:
+    """The values of one override of a search to check: itself, its choices, or an interval's ends."""
+    if not override.is_sweep_override():
+        return [override.get_value_element_as_str()]
+    if override.is_discrete_sweep():
+        return list(override.sweep_string_iterator())
+    return [str(override.value().start), str(override.value().end)]
 
 
 def compose_checked(config_name: str, overrides: Sequence[str]) -> DictConfig:
@@ -93,6 +156,9 @@ def one_line(error: BaseException) -> str:
     option = re.search(r"Could not find '([^']+)/([^'/]+)'\s+Available options in '[^']+':\s+(.*)", text, re.S)
     if option:
         group, name, choices = option.group(1), option.group(2), ", ".join(option.group(3).split())
+        if f"{group}={name}" in PLUGINS:
+            package = PLUGINS[f"{group}={name}"]
+            return f"{group}={name} needs the package {package}, not installed (.venv/bin/pip install {package})"
         return f"{group}={name} is not an option of {group}; choose one of {choices}"
     return " ".join(text.replace("\t", " ").split())
 

@@ -10,9 +10,12 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
+from waterair.cli.console import quiet_dependencies
+from waterair.core.files import atomic_write_text
 from waterair.envs.controllers import CONTROLLERS
 from waterair.training import train, validate
 from waterair.training.resume import plan_resume
+from waterair.training.sweep import ERROR_FILE, JOB_LOG
 
 log = logging.getLogger("waterair.train")
 
@@ -25,10 +28,28 @@ def check(cfg: DictConfig, overrides: list[str]) -> None:
         validate(cfg)
 
 
-def run(cfg: DictConfig, overrides: list[str], output_dir: str | Path) -> float:
-    """Train (or resume) and log the closing summary; return the greedy policy's mean gain (1/m²)."""
+def run(cfg: DictConfig, overrides: list[str], output_dir: str | Path, in_sweep: bool = False) -> float:
+    """Train (or resume) and log the closing summary; return the greedy policy's ratio to the upper bound.
+
+    The ratio is what a search (``hydra/sweeper=optuna``) maximises. A job of a sweep (``in_sweep``)
+    that raises logs its traceback into its own log and leaves its error, one line, in
+    :data:`~waterair.training.sweep.ERROR_FILE` for the sweep's summary; the sweep goes on.
+    """
+    quiet_dependencies()
+    try:
+        return _run(cfg, overrides, Path(output_dir))
+    except Exception as error:
+        if not in_sweep:
+            raise
+        message = " ".join(f"{type(error).__name__}: {error}".split())
+        log.error(f"The job failed: {message} (traceback in {Path(output_dir) / JOB_LOG})")
+        logging.getLogger("waterair.traceback").exception("The job failed")
+        atomic_write_text(Path(output_dir) / ERROR_FILE, message + "\n")
+        raise
+
+
+def _run(cfg: DictConfig, overrides: list[str], run_dir: Path) -> float:
     clock = time.perf_counter()
-    run_dir = Path(output_dir)
     if cfg.resume:
         plan = plan_resume(cfg, overrides)
         if plan.finished:
@@ -36,11 +57,11 @@ def run(cfg: DictConfig, overrides: list[str], output_dir: str | Path) -> float:
                 f"Run {plan.run_dir} is complete: {plan.frames_done:,} of {plan.config.total_frames:,} frames. "
                 f"Nothing to do; total_frames=N with N > {plan.config.total_frames} extends it."
             )
-            return _saved_metrics(plan.run_dir).get("agent/mean_gain", math.nan)
+            return _saved_metrics(plan.run_dir).get("agent/ratio_to_ub", math.nan)
         cfg, run_dir = plan.config, plan.run_dir
     metrics = train(cfg, run_dir, progress=log.info)
     log.info(summary(cfg, run_dir, metrics, time.perf_counter() - clock))
-    return metrics["agent/mean_gain"]
+    return metrics["agent/ratio_to_ub"]
 
 
 def summary(cfg: DictConfig, run_dir: Path, metrics: dict[str, float], seconds: float) -> str:

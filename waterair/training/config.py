@@ -15,6 +15,7 @@ from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.config import EnvConfig
 from waterair.envs.rewards import Reward
+from waterair.training.compiling import CHOICES as COMPILE_CHOICES
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 """The repository's Hydra config directory (the package is installed in place)."""
@@ -36,11 +37,16 @@ NETWORKS = ("mlp",)
 # (oc.select would not do: it keeps resume's explicit null.) Registered at import, before Hydra
 # composes the config.
 OmegaConf.register_new_resolver("run_dir_or", lambda run, default: default if run is None else run, replace=True)
+# A Slurm job asks for one GPU when the run asks for cuda (hydra.launcher.gpus_per_node, docs/training.md).
+OmegaConf.register_new_resolver("gpus_for_device", lambda device: 1 if device == "cuda" else None, replace=True)
 
 
 def validate(cfg: DictConfig) -> None:
     """Check every key before any work; raise ``ValueError`` naming key, value and allowed range."""
-    EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
+    env = OmegaConf.to_container(cfg.env, resolve=True)
+    for key, value in (("env.compile_kernel", env.get("compile_kernel")), ("compile_update", cfg.compile_update)):
+        check_choice(key, str(value).lower(), COMPILE_CHOICES)
+    EnvConfig.from_mapping({**env, "compile_kernel": False})  # true, false or auto: decided when the run starts
     Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True))
     resolve_device(cfg.device)  # cuda without a CUDA device is an error now, not after the set-up
     check_int("seed", cfg.seed, 0, 2**63 - 1)

@@ -15,6 +15,7 @@ from omegaconf import DictConfig, OmegaConf
 from tensordict.nn.distributions.continuous import AddStateIndependentNormalScale
 from tqdm import tqdm
 
+from waterair.agents.checkpoint import load_state
 from waterair.core.devices import resolve_device
 from waterair.core.files import atomic_write_json, atomic_write_text
 from waterair.envs.controllers import controller_for
@@ -35,6 +36,7 @@ from waterair.training.builders import (
     make_update,
 )
 from waterair.training.checkpoint import CHECKPOINT, Learner, Progress, load_checkpoint, save_checkpoint
+from waterair.training.compiling import compile_plan
 from waterair.training.config import validate
 from waterair.training.run_log import RunLog
 
@@ -46,7 +48,7 @@ the classical controller of the agent's sensing (:func:`waterair.envs.controller
 def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = print) -> dict[str, float]:
     """Train from ``cfg`` into ``run_dir`` (resuming from its checkpoint if ``cfg.resume``); return final metrics.
 
-    ``progress`` receives a line when the closing evaluation starts and ends.
+    ``progress`` receives a line saying what runs compiled, and one when the closing evaluation starts and ends.
     """
     run_dir = Path(run_dir)
     validate(cfg)
@@ -58,6 +60,10 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
     config_path = run_dir / "config.yaml"
     if not config_path.exists() or config_path.read_text() != config_text:  # new, or total_frames raised
         atomic_write_text(config_path, config_text)
+    # Decide the compiles (auto: whether the frames to go repay them); config.yaml keeps the setting.
+    frames_done = int(load_state(run_dir / CHECKPOINT)["frames"]) if resumed else 0
+    cfg, compiles = compile_plan(cfg, cfg.total_frames - frames_done)
+    progress(f"Running {compiles}")
 
     # Create the environment, agent, exploration, optimisers and replay buffer
     env = make_env(cfg)

@@ -1,16 +1,27 @@
-"""The Hydra callback that summarises a sweep, and the seed study's table and learning curves.
+"""The summary of a sweep: which jobs finished, which did not and why, and how the finished ones scored.
 
-At the end of a multirun :class:`SweepSummary` writes, at the sweep root, ``summary.csv`` (one row
-per job: its overrides and final metrics), ``summary.md`` (the per-job table of the greedy ratio to
-the upper bound beside the classical controller's, flat-sea Snell's and straight facing's, and the
-spread) and ``learning_curves.png`` (the training links' ratio to the upper bound against frames:
-the mean over jobs and their range).
+:func:`summarise` reads a sweep directory and writes, at its root, ``summary.csv`` (one row per
+job: its number, overrides, status, log and final metrics), ``summary.md`` (the finished jobs'
+greedy ratio to the upper bound beside the classical controller's, flat-sea Snell's and straight
+facing's, their mean, best and spread, then every job that did not finish with why and its log) and
+``learning_curves.png`` (the training links' ratio to the upper bound against frames: the mean over
+the finished jobs and their range). It reads only the files the jobs and the launcher leave, so it
+rebuilds the summary of any sweep, complete, failed or still running
+(``python -m waterair.cli.sweep ROOT``). :class:`SweepSummary` runs it when a multirun ends.
+
+What each job leaves in its folder ``ROOT/N``: ``.hydra/overrides.yaml`` when it starts,
+``final_metrics.json`` when it finishes, :data:`ERROR_FILE` when it raised (written by the job,
+its traceback in its ``train.log``), and :data:`LAUNCH_FILE` when a scheduler ran it (written by
+:mod:`waterair.training.launchers`: its id, last state and log, so a job cancelled before it
+started has a folder too).
 """
 
 from __future__ import annotations
 
 import csv
 import json
+import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -22,64 +33,179 @@ from waterair.envs.controllers import CONTROLLERS
 
 CURVE_KEY = "train/gain_ratio_ub"
 """The column of each job's ``metrics.csv`` the learning curves plot."""
+ERROR_FILE = "error.txt"
+"""One line, ``Type: message``, that a job writes into its folder when it raises."""
+LAUNCH_FILE = "job.json"
+"""A scheduler's record of a job: ``{"id", "state", "log", "overrides"}``."""
+JOB_LOG = "train.log"
+"""The log every job writes into its folder (conf/hydra/job_logging/waterair.yaml)."""
+FINISHED = "finished"
+
+
+@dataclass(frozen=True)
+class Job:
+    """One job of a sweep, as its files tell it."""
+
+    number: int
+    overrides: tuple[str, ...]
+    status: str
+    """``finished``; else why not: ``failed`` (it raised), the scheduler's state (``cancelled``,
+    ``timeout``, ``out_of_memory``, ...), or ``not finished`` (still running, or killed without a trace)."""
+    detail: str = ""
+    log: Path | None = None
+    metrics: dict = field(default_factory=dict)
+
+    @property
+    def finished(self) -> bool:
+        return self.status == FINISHED
 
 
 class SweepSummary(Callback):
-    """At the end of a multirun, write the summary files described in the module docstring."""
+    """At the end of a multirun, write the summary and say where it is (the last line on the console).
+
+    If a job did not finish, the process exits with status 1 and one line naming each such job, why
+    and its log. The exit is done here because Hydra turns an exception raised by a callback into a
+    warning; this callback runs last, after every job has ended.
+    """
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
-        summarise(Path(config.hydra.sweep.dir))
+        conclude(Path(config.hydra.sweep.dir))
 
 
-def summarise(root: Path) -> list[dict]:
-    """Write ``summary.csv``, ``summary.md`` and ``learning_curves.png`` for the jobs under ``root``; the rows."""
-    rows = []
-    for metrics_path in sorted(root.glob("*/final_metrics.json"), key=lambda p: int(p.parent.name)):
-        overrides_path = metrics_path.parent / ".hydra" / "overrides.yaml"
-        overrides = OmegaConf.load(overrides_path) if overrides_path.exists() else []
-        rows.append(
-            {"job": metrics_path.parent.name, "overrides": " ".join(overrides), **json.loads(metrics_path.read_text())}
-        )
-    if not rows:
-        return rows
+def conclude(root: Path) -> None:
+    """Summarise the sweep at ``root``; print where the summary is, or exit with status 1 and one line
+    naming each job that did not finish, why, its log, and where the summary is."""
+    line, error = report(root, summarise(root))
+    if error:
+        sys.exit(f"error: {error}")
+    # print, not logging: after a basic launcher's jobs the root logger still writes into the last job's log
+    print(line, flush=True)
+
+
+def summarise(root: Path) -> list[Job]:
+    """Write ``summary.csv``, ``summary.md`` and ``learning_curves.png`` for the jobs under ``root``; the jobs."""
+    jobs = read_jobs(root)
+    if not jobs:
+        return jobs
+    rows = [
+        {"job": job.number, "overrides": " ".join(job.overrides), "status": job.status,
+         "log": _relative(job.log, root), **job.metrics}
+        for job in jobs
+    ]  # fmt: skip
     atomic_write_csv(root / "summary.csv", list(dict.fromkeys(key for row in rows for key in row)), rows)
-    atomic_write_text(root / "summary.md", summary_table(rows))
-    curves = {row["job"]: read_curve(root / row["job"] / "metrics.csv") for row in rows}
-    learning_curves({job: curve for job, curve in curves.items() if curve[0].size}, root / "learning_curves.png")
-    return rows
+    atomic_write_text(root / "summary.md", summary_table(jobs, root))
+    finished = [job for job in jobs if job.finished]
+    curves = {str(job.number): read_curve(root / str(job.number) / "metrics.csv") for job in finished}
+    learning_curves({name: curve for name, curve in curves.items() if curve[0].size}, root / "learning_curves.png")
+    return jobs
 
 
-def summary_table(rows: list[dict]) -> str:
-    """A Markdown table: per job, the greedy agent's, the classical controller's, flat-sea Snell's and
+def read_jobs(root: Path) -> list[Job]:
+    """Every job of the sweep at ``root`` (a numbered folder each), in order."""
+    folders = [path for path in root.iterdir() if path.is_dir() and path.name.isdigit()] if root.is_dir() else []
+    return [read_job(folder) for folder in sorted(folders, key=lambda path: int(path.name))]
+
+
+def read_job(folder: Path) -> Job:
+    """The job whose folder is ``folder``: finished, failed, stopped by its scheduler, or not finished."""
+    launch = json.loads((folder / LAUNCH_FILE).read_text()) if (folder / LAUNCH_FILE).is_file() else {}
+    overrides_path = folder / ".hydra" / "overrides.yaml"
+    overrides = OmegaConf.load(overrides_path) if overrides_path.is_file() else launch.get("overrides", [])
+    job_log = folder / JOB_LOG
+    common = {"number": int(folder.name), "overrides": tuple(str(override) for override in overrides)}
+    if (folder / "final_metrics.json").is_file():
+        metrics = json.loads((folder / "final_metrics.json").read_text())
+        return Job(**common, status=FINISHED, log=job_log, metrics=metrics)
+    if (folder / ERROR_FILE).is_file():
+        return Job(**common, status="failed", detail=(folder / ERROR_FILE).read_text().strip(), log=job_log)
+    state = str(launch.get("state", "")).split(" ")[0]  # sacct adds "by UID" to CANCELLED
+    scheduler_log = Path(launch["log"]) if launch.get("log") else None
+    if state and state not in ("PENDING", "RUNNING", "SUBMITTED", "COMPLETED", "UNKNOWN"):
+        started = scheduler_log is not None and scheduler_log.is_file()
+        detail = f"the scheduler's state is {state}" + ("" if started else "; it never started")
+        return Job(**common, status=state.lower(), detail=detail, log=scheduler_log if started else None)
+    detail = "it is still running, or was stopped without leaving a trace"
+    return Job(**common, status="not finished", detail=detail, log=job_log if job_log.is_file() else scheduler_log)
+
+
+def report(root: Path, jobs: list[Job]) -> tuple[str, str | None]:
+    """The line that says where the summary is, and a one-line error naming each job that did not finish."""
+    finished = sum(job.finished for job in jobs)
+    where = root / "summary.md"
+    if not jobs:
+        return f"No job folders under {root}: nothing to summarise", f"{root} holds no jobs (numbered folders)"
+    if finished == len(jobs):
+        return f"Summary of {len(jobs)} jobs: {where}", None
+    shown = varying(jobs)
+    missing = [
+        f"job {job.number} ({shown[job.number] or 'no overrides'}) {job.status}: {job.detail} (log: {job.log or '–'})"
+        for job in jobs
+        if not job.finished
+    ]
+    line = f"Summary of the {finished} finished of {len(jobs)} jobs: {where}"
+    return line, f"{len(missing)} of {len(jobs)} jobs did not finish: {'; '.join(missing)}; summary: {where}"
+
+
+def summary_table(jobs: list[Job], root: Path) -> str:
+    """Markdown: per finished job, the greedy agent's, the classical controller's, flat-sea Snell's and
     straight facing's ratio to UB (the closing evaluation's, on the same seas at the job's own wind and
-    offset), and the agent's spread over jobs."""
-    classical = [name for name in CONTROLLERS if any(f"{name}/ratio_to_ub" in row for row in rows)]
-    lines = [
+    offset), the agent's spread and best job; then the jobs that did not finish."""
+    rows, shown = [job for job in jobs if job.finished], varying(jobs)
+    classical = [name for name in CONTROLLERS if any(f"{name}/ratio_to_ub" in job.metrics for job in rows)]
+    common = [override for override in jobs[0].overrides if all(override in job.overrides for job in jobs)]
+    lines = [f"Every job: `{' '.join(common)}`", ""] if common and len(jobs) > 1 else []
+    lines += [
         "| job | overrides | frames | training (s) | agent ratio to UB | "
         + "".join(f"{name} | " for name in classical)
         + "flat-Snell | straight facing |",
         "|---" * (7 + len(classical)) + "|",
     ]
-    for row in rows:
-        seconds = row.get("train_seconds")
-        references = "".join(_ratio(row, name) + " | " for name in classical)
+    for job in rows:
+        seconds, references = job.metrics.get("train_seconds"), "".join(_ratio(job, name) + " | " for name in classical)
         lines.append(
-            f"| {row['job']} | `{row['overrides']}` | {row['frames']} | {'–' if seconds is None else f'{seconds:.0f}'} "
-            f"| {row['agent/ratio_to_ub']:.3f} | {references}{_ratio(row, 'flat_snell')} | "
-            f"{_ratio(row, 'straight_facing')} |"
+            f"| {job.number} | `{shown[job.number]}` | {job.metrics['frames']} | "
+            f"{'–' if seconds is None else f'{seconds:.0f}'} | {job.metrics['agent/ratio_to_ub']:.3f} | {references}"
+            f"{_ratio(job, 'flat_snell')} | {_ratio(job, 'straight_facing')} |"
         )
-    ratios = [row["agent/ratio_to_ub"] for row in rows]
-    lines += [
-        "",
-        f"Agent ratio to UB over {len(rows)} jobs: mean {np.mean(ratios):.3f}, best {max(ratios):.3f}, "
-        f"worst {min(ratios):.3f} (best − worst {max(ratios) - min(ratios):.3f}).",
-    ]
+    if rows:
+        ratios = [job.metrics["agent/ratio_to_ub"] for job in rows]
+        best = rows[int(np.argmax(ratios))]
+        lines += [
+            "",
+            f"Agent ratio to UB over {len(rows)} job{'s' if len(rows) > 1 else ''}: mean {np.mean(ratios):.3f}, "
+            f"best {max(ratios):.3f}, "
+            f"worst {min(ratios):.3f} (best − worst {max(ratios) - min(ratios):.3f}).",
+            "",
+            f"Best: job {best.number} (`{shown[best.number]}`), {max(ratios):.3f}.",
+        ]
+    unfinished = [job for job in jobs if not job.finished]
+    if unfinished:
+        lines += ["", f"Did not finish ({len(unfinished)} of {len(jobs)} jobs):", "",
+                  "| job | overrides | status | why | log |", "|---|---|---|---|---|"]  # fmt: skip
+        for job in unfinished:
+            where = _relative(job.log, root) or "–"
+            lines.append(f"| {job.number} | `{shown[job.number]}` | {job.status} | {job.detail} | {where} |")
     return "\n".join(lines) + "\n"
 
 
-def _ratio(row: dict, name: str) -> str:
-    value = row.get(f"{name}/ratio_to_ub")
+def varying(jobs: list[Job]) -> dict[int, str]:
+    """Per job, its overrides that not every job shares (all of them if the sweep has one job)."""
+    common = set.intersection(*(set(job.overrides) for job in jobs)) if len(jobs) > 1 else set()
+    return {job.number: " ".join(o for o in job.overrides if o not in common) for job in jobs}
+
+
+def _ratio(job: Job, name: str) -> str:
+    value = job.metrics.get(f"{name}/ratio_to_ub")
     return "–" if value is None else f"{value:.3f}"
+
+
+def _relative(path: Path | None, root: Path) -> str:
+    if path is None:
+        return ""
+    try:
+        return str(path.resolve().relative_to(root.resolve()))
+    except ValueError:
+        return str(path)
 
 
 def read_curve(path: Path) -> tuple[np.ndarray, np.ndarray]:
