@@ -2,7 +2,7 @@
 
 Imports only torch and tensordict, so it can be used on its own (a notebook, another simulator)::
 
-    from waterair.physics import SeaState, WaveSurface, LinkGeometry, solve_path
+    from waterair.physics import SeaState, WaveSurface, LinkGeometry, solve_path, LinkBudget, link_performance
 
 Equations and the corrections to the paper are in docs/model.md.
 """
@@ -17,6 +17,7 @@ from waterair.physics.channel import (
     gain_upper_bound,
     pointing,
 )
+from waterair.physics.link import LinkBudget, LinkPerformance, Receiver, link_performance
 from waterair.physics.paths import CentroidOptions, NewtonOptions, PathSolution, flat_sea_point, solve_path
 from waterair.physics.sea import SeaState, jonswap, spreading
 from waterair.physics.surface import SurfaceSample, WaveSurface
@@ -24,9 +25,12 @@ from waterair.physics.surface import SurfaceSample, WaveSurface
 __all__ = [
     "CentroidOptions",
     "ChannelGain",
+    "LinkBudget",
     "LinkGeometry",
+    "LinkPerformance",
     "NewtonOptions",
     "PathSolution",
+    "Receiver",
     "SeaState",
     "SurfaceSample",
     "Transceiver",
@@ -37,6 +41,7 @@ __all__ = [
     "flat_sea_point",
     "gain_upper_bound",
     "jonswap",
+    "link_performance",
     "pointing",
     "solve_path",
     "spreading",
