@@ -8,9 +8,12 @@ import math
 
 import pytest
 import torch
+from conftest import ROOT, compose_config
+from omegaconf import OmegaConf
 
 from waterair.physics.channel import LinkGeometry, Transceiver, calm_sea_gain
 from waterair.physics.link import (
+    BACKGROUND_RADIANCE,
     RECEIVERS,
     LinkBudget,
     Receiver,
@@ -230,6 +233,21 @@ def test_a_bad_link_value_is_a_one_line_error_naming_the_key(key, value, message
     with pytest.raises(ValueError) as error:
         LinkBudget.from_mapping({**DEFAULT_LINK, key: value})
     assert str(error.value).startswith(message) and "\n" not in str(error.value)
+
+
+def test_the_presets_are_the_modules_constants_and_the_default_is_the_apd_by_day():
+    for name, receiver in RECEIVERS.items():
+        keys = OmegaConf.to_container(OmegaConf.load(ROOT / "conf" / "link" / "receiver" / f"{name}.yaml"))
+        assert Receiver(**keys) == receiver
+    for name, radiance in BACKGROUND_RADIANCE.items():
+        preset = OmegaConf.load(ROOT / "conf" / "link" / "background" / f"{name}.yaml")
+        assert preset.background_radiance == radiance
+    for config in ("config", "evaluate"):
+        link = OmegaConf.to_container(compose_config(config).link)
+        assert link == DEFAULT_LINK and LinkBudget.from_mapping(link) == LinkBudget()
+    night_pin = compose_config("config", ["link/receiver=pin", "link/background=night", "link.power_w=0.5"]).link
+    budget = LinkBudget.from_mapping(OmegaConf.to_container(night_pin))
+    assert (budget.receiver, budget.background_radiance, budget.power_w) == (RECEIVERS["pin"], 1.25e-8, 0.5)
 
 
 def test_background_power_is_radiance_times_band_transmittance_and_etendue():

@@ -30,6 +30,7 @@ from waterair.envs.env import WaterAirEnv
 from waterair.evaluation.metrics import scenario_metrics
 from waterair.evaluation.policies import INTERFACE_KEYS, LearnedPolicy, as_list, checkpoint_sources, load_policy
 from waterair.evaluation.scenarios import Scenario, scenarios_from_config
+from waterair.physics.link import LinkBudget
 
 UPPER_BOUND = "upper_bound"
 REFERENCES = {**BASELINES, **CONTROLLERS}
@@ -121,6 +122,7 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
     base = EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
     device = resolve_device(base.device, "env.device")
     base = base.replace(device=str(device))  # reports name the device that ran, not "auto"
+    LinkBudget.from_mapping(OmegaConf.to_container(cfg.link, resolve=True), optics=base.transceiver())
     scenario_env = {key: getattr(base, key) for key in INTERFACE_KEYS}
     baselines = as_list(cfg.baselines)
     unknown = [name for name in baselines if name not in REFERENCES]
