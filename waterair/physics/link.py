@@ -327,7 +327,7 @@ def bit_error_rate(q: torch.Tensor) -> torch.Tensor:
 
 
 def q_at_ber(ber: float) -> float:
-    """The Q factor whose BER (eq. 9.10) is ``ber`` in (0, ½): Q = −Φ⁻¹(BER); 3.8e-3 gives 2.670."""
+    """The Q factor whose BER (eq. 9.10) is ``ber`` in (0, ½): Q = −Φ⁻¹(BER); 3.8e-3 gives 2.669."""
     return -NormalDist().inv_cdf(ber)
 
 
