@@ -310,6 +310,7 @@ def test_each_shipped_policy_loads_matches_its_metrics_and_has_the_documented_co
     policy = load_policy(path)
     # trained with the documented defaults (and its preset): the same keys and values as conf/ composes today
     documented = OmegaConf.to_container(compose_config("config", list(SHIPPED[name])), resolve=True)
+    documented.pop("link")  # the link budget came after these policies were trained; training does not read it
     assert policy.label == f"{documented['agent']['name']} {name}"
     assert OmegaConf.to_container(policy.config, resolve=True) == documented
     assert policy.file.frames == documented["total_frames"]
