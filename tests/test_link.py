@@ -20,6 +20,7 @@ from waterair.physics.link import (
     background_power,
     bit_error_rate,
     detector_area,
+    fec_power,
     link_performance,
     max_bit_rate,
     noise_variance,
@@ -176,6 +177,18 @@ def test_outage_is_a_ber_above_the_fec_limit_and_no_light_is_an_outage():
     dark = link_performance(watts(0.0), LinkBudget())
     assert (dark.received_power.item(), dark.snr.item(), dark.ber.item()) == (0.0, 0.0, 0.5)
     assert dark.outage.item() and dark.max_bit_rate.item() == 0.0
+
+
+@pytest.mark.parametrize(
+    "receiver,background,watts_at_limit",
+    [("apd", "day", 31.6e-9), ("apd", "night", 9.1e-9), ("pin", "day", 0.36e-6), ("pin", "night", 0.36e-6)],
+)
+def test_the_fec_power_has_the_fec_limits_q_and_the_docs_numbers(receiver, background, watts_at_limit):
+    link = LinkBudget(receiver=RECEIVERS[receiver], background_radiance=BACKGROUND_RADIANCE[background])
+    power = fec_power(link)
+    assert power == pytest.approx(watts_at_limit, rel=0.01)  # docs/model.md §9, after the worked example
+    q = q_factor(torch.tensor(power, dtype=F64), link.background_power, link.receiver, link.bandwidth)
+    assert q.item() == pytest.approx(q_at_ber(3.8e-3), rel=1e-12)
 
 
 def test_float32_and_float64_agree_and_every_field_keeps_the_gains_shape():

@@ -331,6 +331,20 @@ def q_at_ber(ber: float) -> float:
     return -NormalDist().inv_cdf(ber)
 
 
+def fec_power(budget: LinkBudget) -> float:
+    """The received power P_r (W) at which BER = the FEC limit at the operating bit rate, eq. (9.14).
+
+    σ(2P)² = σ(0)² + 2kP with k = 2qℜM²F B, and Q = aP/(σ(2P) + σ(0)) with a = 2Mℜ, so Q = Q_FEC at
+    P = 2 Q_FEC (k Q_FEC + a σ(0)) / a². Below it the link is in outage (eq. 9.13).
+    """
+    r, q_fec = budget.receiver, q_at_ber(budget.fec_limit)
+    a = 2.0 * r.gain * r.responsivity
+    k = 2.0 * ELEMENTARY_CHARGE * r.responsivity * r.gain**2 * excess_noise_factor(r.gain, r.k_a) * budget.bandwidth
+    zero = torch.zeros((), dtype=torch.float64)
+    sigma_0 = noise_variance(zero, budget.background_power, r, budget.bandwidth).sqrt().item()
+    return 2.0 * q_fec * (k * q_fec + a * sigma_0) / a**2
+
+
 def outage(q: torch.Tensor, fec_limit: float = FEC_LIMIT) -> torch.Tensor:
     """Outage: BER above the FEC limit, i.e. Q below Q(fec_limit), eq. (9.13); bool, shaped like ``q``."""
     return q < q_at_ber(fec_limit)

@@ -27,7 +27,9 @@ from waterair.agents.networks import make_critic as build_critic
 from waterair.agents.networks import make_gaussian_policy, make_value
 from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
+from waterair.envs.link import link_budget
 from waterair.envs.rewards import Reward
+from waterair.physics.link import LinkBudget
 
 TRANSITION_KEYS = (
     "observation",
@@ -45,6 +47,12 @@ ON_POLICY = ("ppo",)
 def env_config(cfg: DictConfig, **overrides) -> EnvConfig:
     """The validated environment config of the ``env`` group, with ``overrides`` applied."""
     return EnvConfig.from_mapping({**OmegaConf.to_container(cfg.env, resolve=True), **overrides})
+
+
+def make_link(cfg: DictConfig, config: EnvConfig | None = None) -> LinkBudget:
+    """The link budget of the ``link`` group on the channel of ``config`` (default: the ``env`` group's)."""
+    values = OmegaConf.to_container(cfg.link, resolve=True) if "link" in cfg else None
+    return link_budget(values, config or env_config(cfg))
 
 
 def make_env(cfg: DictConfig) -> TransformedEnv:

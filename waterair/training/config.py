@@ -14,8 +14,8 @@ from waterair.agents.networks import ACTIVATIONS
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.config import EnvConfig
+from waterair.envs.link import link_budget
 from waterair.envs.rewards import Reward
-from waterair.physics.link import LinkBudget
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 """The repository's Hydra config directory (the package is installed in place)."""
@@ -42,8 +42,8 @@ OmegaConf.register_new_resolver("run_dir_or", lambda run, default: default if ru
 def validate(cfg: DictConfig) -> None:
     """Check every key before any work; raise ``ValueError`` naming key, value and allowed range."""
     env = EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
-    if "link" in cfg:  # a run saved before the link budget has none, and nothing it runs reads one
-        LinkBudget.from_mapping(OmegaConf.to_container(cfg.link, resolve=True), optics=env.transceiver())
+    # a run saved before the link group has none: its link metrics use the default budget
+    link_budget(OmegaConf.to_container(cfg.link, resolve=True) if "link" in cfg else None, env)
     Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True))
     resolve_device(cfg.device)  # cuda without a CUDA device is an error now, not after the set-up
     check_int("seed", cfg.seed, 0, 2**63 - 1)
