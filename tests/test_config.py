@@ -71,6 +71,7 @@ def test_every_launcher_composes(launcher):
 @pytest.mark.parametrize(
     "group,option,unread",
     [("reward", "linear", {"a", "b", "c", "gain", "bias", "floor"}), ("reward", "log", {"a", "b", "c", "gain"}),
+     ("reward", "snr", {"a", "b", "c", "gain", "bias", "floor"}),
      ("agent", "ddpg", {"policy_delay", "policy_noise", "noise_clip", "lmbda", "max_grad_norm"}),
      ("agent", "ppo", {"tau", "policy_delay", "policy_noise", "noise_clip"}), ("noise", "gaussian", {"theta"}),
      ("buffer", "memory", {"scratch_dir"})],

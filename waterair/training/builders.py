@@ -55,10 +55,16 @@ def make_link(cfg: DictConfig, config: EnvConfig | None = None) -> LinkBudget:
     return link_budget(values, config or env_config(cfg))
 
 
+def make_reward(cfg: DictConfig, config: EnvConfig | None = None) -> Reward:
+    """The reward of the ``reward`` group (``snr`` reads the link budget)."""
+    return Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True), link=make_link(cfg, config))
+
+
 def make_env(cfg: DictConfig) -> TransformedEnv:
     """The batched environment with episode-reward and init tracking (the OU noise needs is_init)."""
-    reward = Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True))
-    return TransformedEnv(WaterAirEnv(env_config(cfg), reward=reward), Compose(InitTracker(), RewardSum()))
+    config = env_config(cfg)
+    reward = make_reward(cfg, config)
+    return TransformedEnv(WaterAirEnv(config, reward=reward), Compose(InitTracker(), RewardSum()))
 
 
 def make_actor(cfg: DictConfig, env, device) -> TensorDictModule:

@@ -43,8 +43,8 @@ def validate(cfg: DictConfig) -> None:
     """Check every key before any work; raise ``ValueError`` naming key, value and allowed range."""
     env = EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
     # a run saved before the link group has none: its link metrics use the default budget
-    link_budget(OmegaConf.to_container(cfg.link, resolve=True) if "link" in cfg else None, env)
-    Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True))
+    link = link_budget(OmegaConf.to_container(cfg.link, resolve=True) if "link" in cfg else None, env)
+    Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True), link=link)
     resolve_device(cfg.device)  # cuda without a CUDA device is an error now, not after the set-up
     check_int("seed", cfg.seed, 0, 2**63 - 1)
     check_int("total_frames", cfg.total_frames, 1)
