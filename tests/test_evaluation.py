@@ -150,7 +150,7 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert labels[1] in report
     s1 = next(r for r in data["rows"] if r["scenario"] == "S1" and r["policy"] == labels[1])
     assert "| outage | mean BER | rate (Mbit/s) |" in report and "in outage below P_r = 31.6 nW" in report
-    assert f"| {s1['outage']:.2%} [" in report and f"| {s1['ber']:.2g} | {s1['rate'] / 1e6:.3g} |" in report
+    assert f"| {s1['outage']:.3%} [" in report and f"| {s1['ber']:.2g} | {s1['rate'] / 1e6:.3g} |" in report
 
 
 def _same_point(a: dict, b: dict) -> bool:

@@ -108,12 +108,12 @@ def ber_vs_time(result, path: Path) -> Path:
         ax.axhline(result.link.fec_limit, color="crimson", linewidth=1.0, label="FEC limit")
         ax.set_yscale("log")
         ax.set_ylim(BER_FLOOR / 3, 1.0)
-        ax.set_ylabel(f"bit error rate (below {BER_FLOOR:g} drawn at it)")
+        ax.set_ylabel("bit error rate")
         ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3, which="both")
     axes[1].set_xlabel("time (s)")
     link = f"{result.link.bit_rate / 1e6:g} Mbit/s OOK, {result.link.power_w * 1e3:g} mW"
-    fig.suptitle(f"{scenario.title}\n{link}: outage above the FEC limit")
+    fig.suptitle(f"{scenario.title}\n{link}: outage above the FEC limit; a BER below {BER_FLOOR:g} drawn at it")
     return _save_with_legend(fig, axes[0], path)
 
 

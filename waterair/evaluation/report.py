@@ -133,7 +133,7 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
                 lines.append(
                     f"| {policy['label']} | {r['mean_gain']:.4g} [{r['mean_gain_lo']:.4g}, {r['mean_gain_hi']:.4g}] "
                     f"| {r['ratio_to_ub']:.3f} | {r['sigma2_diff']:.3g} "
-                    f"| {r['outage']:.2%} [{r['outage_lo']:.2%}, {r['outage_hi']:.2%}] | {r['ber']:.2g} "
+                    f"| {r['outage']:.3%} [{r['outage_lo']:.3%}, {r['outage_hi']:.3%}] | {r['ber']:.2g} "
                     f"| {r['rate'] / 1e6:.3g} | {r['fade_10db']:.2%} | {r['valid_share']:.1%} |"
                 )
         else:
@@ -148,7 +148,7 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
                 cells = []
                 for label in labels:
                     r = result.row(scenario.name, label, point)
-                    cells.append(f"{r['ratio_to_ub']:.3f}<br>{r['sigma2_diff']:.2g}<br>{r['outage']:.1%}")
+                    cells.append(f"{r['ratio_to_ub']:.3f}<br>{r['sigma2_diff']:.2g}<br>{r['outage']:.2%}")
                 shown = f"{value:.0%}" if scenario.axis == "offset_ratio" else f"{value:g}"
                 lines.append(f"| {shown} | " + " | ".join(cells) + " |")
         lines.append("")
