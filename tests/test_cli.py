@@ -43,6 +43,8 @@ CASES = [
     ("evaluate.py", "+foo=1", "foo is not a config key"),
     ("train.py", "env.offset_range=5", "env.offset_range = 5 must be a list"),
     ("train.py", "actor.hidden=5", "actor.hidden = 5 must be a list of layer widths"),
+    ("train.py", "link.k_a=1.5", "link.k_a = 1.5 is out of range; allowed [0, 1]"),
+    ("evaluate.py", "link.power_w=-1", "link.power_w = -1 is out of range; allowed (0, 1000] W"),
 ]
 
 

@@ -13,9 +13,10 @@ GROUPS = {
 }
 OPTIONS = [(group, option) for group, options in GROUPS.items() for option in options]
 OPTIONS += [
-    (f"env/{group}", p.stem)
-    for group in ("sea", "sensor", "observation")
-    for p in sorted((ROOT / "conf" / "env" / group).glob("*.yaml"))
+    (f"{package}/{group}", p.stem)
+    for package, groups in (("env", ("sea", "sensor", "observation")), ("link", ("receiver", "background")))
+    for group in groups
+    for p in sorted((ROOT / "conf" / package / group).glob("*.yaml"))
 ]
 LAUNCHERS = ["basic", "joblib", "submitit_local", "submitit_slurm"]
 SELECTED = {"actor", "critic", "agent", "buffer", "noise", "reward", "logger"}
@@ -25,8 +26,9 @@ NAMED_AS = {("reward", "pointing"): "le"}
 
 
 def test_every_group_is_covered():
-    assert set(GROUPS) == {"actor", "agent", "buffer", "collector", "critic", "logger", "noise", "reward"}
+    assert set(GROUPS) == {"actor", "agent", "buffer", "collector", "critic", "link", "logger", "noise", "reward"}
     assert {"calm", "moderate", "rough"} <= {option for group, option in OPTIONS if group == "env/sea"}
+    assert {("link/receiver", "apd"), ("link/receiver", "pin"), ("link/background", "night")} <= set(OPTIONS)
 
 
 OFF_POLICY_ONLY = {("noise", "ou")}
@@ -69,6 +71,7 @@ def test_every_launcher_composes(launcher):
 @pytest.mark.parametrize(
     "group,option,unread",
     [("reward", "linear", {"a", "b", "c", "gain", "bias", "floor"}), ("reward", "log", {"a", "b", "c", "gain"}),
+     ("reward", "snr", {"a", "b", "c", "gain", "bias", "floor"}),
      ("agent", "ddpg", {"policy_delay", "policy_noise", "noise_clip", "lmbda", "max_grad_norm"}),
      ("agent", "ppo", {"tau", "policy_delay", "policy_noise", "noise_clip"}), ("noise", "gaussian", {"theta"}),
      ("buffer", "memory", {"scratch_dir"})],

@@ -1,6 +1,7 @@
 """evaluate.py and waterair.evaluation: schema, figures, same seas, the upper bound, checkpoint errors."""
 
 import json
+import math
 import re
 import subprocess
 import sys
@@ -58,9 +59,12 @@ EVAL_TINY = [
 ]
 FIGURES = (
     "gain_vs_time",
+    "ber_vs_time",
     "gain_vs_offset",
     "sigma_diff_vs_offset",
+    "outage_vs_offset",
     "gain_vs_wind",
+    "outage_vs_wind",
     "gain_vs_azimuth",
     "jonswap_spectrum",
     "jonswap_directional",
@@ -114,7 +118,8 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert {p.name for p in written} >= {"metrics.json", "metrics.csv", "report.md"}
 
     data = json.loads((tmp_path / "metrics.json").read_text())
-    assert data["schema_version"] == 2
+    assert data["schema_version"] == 3
+    assert data["link"]["power_w"] == 0.05 and data["link"]["fec_power"] == pytest.approx(3.16e-8, rel=0.01)
     labels = [p["label"] for p in data["policies"]]
     references = ["tracking", "aoa_tracker", "intensity_dither", "flat_snell", "straight_facing", "no_alignment"]
     # the run trained with the realistic sensor (train.py's default): the classical controllers also
@@ -129,6 +134,11 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
         assert set(row) == set(ROW_KEYS)
         for name in METRICS:
             assert row[f"{name}_lo"] <= row[name] + 1e-12 and row[name] <= row[f"{name}_hi"] + 1e-12, (row, name)
+        assert all(math.isfinite(row[name]) for name in ("ber", "outage", "rate")), row
+        assert 0.0 <= row["ber"] <= 0.5 and 0.0 <= row["outage"] <= 1.0 and row["rate"] >= 0.0, row
+        # the upper bound's outage is at most every policy's: the same seas, the most light at each step
+        bound = next(r for r in data["rows"] if r["policy"] == "upper_bound" and _same_point(r, row))
+        assert bound["outage"] <= row["outage"] and bound["ber"] <= row["ber"] + 1e-15, row
     csv_lines = (tmp_path / "metrics.csv").read_text().splitlines()
     assert csv_lines[0].split(",") == list(ROW_KEYS) and len(csv_lines) == 1 + len(data["rows"])
 
@@ -138,6 +148,13 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000, name
         assert f"]({name}.png)" in report
     assert labels[1] in report
+    s1 = next(r for r in data["rows"] if r["scenario"] == "S1" and r["policy"] == labels[1])
+    assert "| outage | mean BER | rate (Mbit/s) |" in report and "in outage below P_r = 31.6 nW" in report
+    assert f"| {s1['outage']:.3%} [" in report and f"| {s1['ber']:.2g} | {s1['rate'] / 1e6:.3g} |" in report
+
+
+def _same_point(a: dict, b: dict) -> bool:
+    return all(a[key] == b[key] for key in ("scenario", "wind", "offset_ratio", "offset_azimuth_deg"))
 
 
 @pytest.mark.slow
@@ -310,6 +327,7 @@ def test_each_shipped_policy_loads_matches_its_metrics_and_has_the_documented_co
     policy = load_policy(path)
     # trained with the documented defaults (and its preset): the same keys and values as conf/ composes today
     documented = OmegaConf.to_container(compose_config("config", list(SHIPPED[name])), resolve=True)
+    documented.pop("link")  # the link budget came after these policies were trained: their configs have none
     assert policy.label == f"{documented['agent']['name']} {name}"
     assert OmegaConf.to_container(policy.config, resolve=True) == documented
     assert policy.file.frames == documented["total_frames"]

@@ -7,11 +7,12 @@ import torch
 
 from waterair.evaluation.metrics import (
     METRICS,
-    outage_probability,
+    fade_probability,
     ratio_to_upper_bound,
     scenario_metrics,
     sigma2_diff,
 )
+from waterair.physics.link import LinkBudget, fec_power, link_performance
 
 
 def test_sigma2_diff_of_a_known_difference():
@@ -23,11 +24,27 @@ def test_sigma2_diff_of_a_known_difference():
     assert sigma2_diff(upper - 2.5, upper) == pytest.approx(0.0, abs=1e-12)
 
 
-def test_outage_counts_steps_below_a_tenth_of_the_reference():
+def test_fade_counts_steps_below_a_tenth_of_the_reference():
     gain = torch.tensor([[0.05, 0.2, 0.09, 1.0], [0.1, 0.11, 0.0, 0.5]])
-    # references 1 and 2: thresholds 0.1 and 0.2; outages 0.05, 0.09 | 0.1, 0.11, 0.0
+    # references 1 and 2: thresholds 0.1 and 0.2; fades 0.05, 0.09 | 0.1, 0.11, 0.0
     reference = torch.tensor([[1.0], [2.0]])
-    assert outage_probability(gain, reference) == pytest.approx(5 / 8)
+    assert fade_probability(gain, reference) == pytest.approx(5 / 8)
+
+
+@pytest.mark.parametrize("link", [LinkBudget(), LinkBudget(background_radiance=0.0, bit_rate=2e7)], ids=["day", "dark"])
+def test_link_metrics_are_the_budget_of_each_step_and_outage_starts_at_the_fec_power(link):
+    # Gains spread over a decade either side of the FEC limit's gain, so that some steps are in outage.
+    threshold = fec_power(link) / link.received_power_per_gain
+    gain = threshold * 10.0 ** (2.0 * torch.rand(6, 40, generator=torch.Generator().manual_seed(2)) - 1.0)
+    gain = gain.double()
+    m = scenario_metrics(gain, gain * 2.0, torch.ones(6), torch.ones(6, 40, dtype=torch.bool), link=link)
+    delivered = link_performance(gain, link)
+    assert m["outage"] == pytest.approx((gain < threshold).double().mean().item())  # (9.13) ⟺ P_r < P_FEC
+    assert 0.0 < m["outage"] < 1.0
+    assert m["ber"] == pytest.approx(delivered.ber.mean().item(), rel=1e-12)
+    assert m["rate"] == pytest.approx(delivered.max_bit_rate.mean().item(), rel=1e-12)
+    for name in ("ber", "outage", "rate"):
+        assert m[f"{name}_lo"] <= m[name] <= m[f"{name}_hi"], name
 
 
 def test_ratio_to_upper_bound_is_a_ratio_of_means_not_a_mean_of_ratios():
@@ -47,7 +64,7 @@ def test_scenario_metrics_point_values_match_the_plain_definitions():
     assert m["mean_gain"] == pytest.approx(gain.mean().item(), rel=1e-12)
     assert m["ratio_to_ub"] == pytest.approx((gain.mean() / upper.mean()).item(), rel=1e-12)
     assert m["sigma2_diff"] == pytest.approx((upper - gain).var(unbiased=False).item(), rel=1e-9)
-    assert m["outage"] == pytest.approx((gain < 0.1 * reference[:, None]).double().mean().item())
+    assert m["fade_10db"] == pytest.approx((gain < 0.1 * reference[:, None]).double().mean().item())
     assert m["valid_share"] == pytest.approx(valid.double().mean().item())
     assert m["mean_intensity"] == pytest.approx((gain / reference[:, None]).mean().item(), rel=1e-12)
     for name in METRICS:
@@ -80,4 +97,5 @@ def test_bootstrap_interval_matches_the_normal_interval_of_independent_realisati
 def test_no_valid_path_anywhere_gives_ratio_zero_not_nan():
     zeros = torch.zeros(3, 4)
     m = scenario_metrics(zeros, zeros, torch.ones(3), torch.zeros(3, 4, dtype=torch.bool))
-    assert m["ratio_to_ub"] == 0.0 and m["valid_share"] == 0.0 and m["outage"] == 1.0
+    assert m["ratio_to_ub"] == 0.0 and m["valid_share"] == 0.0 and m["fade_10db"] == 1.0
+    assert m["outage"] == 1.0 and m["ber"] == 0.5 and m["rate"] == 0.0

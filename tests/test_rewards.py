@@ -4,10 +4,16 @@ import math
 
 import pytest
 import torch
+from conftest import compose_config
 from hypothesis import given
 from hypothesis import strategies as st
 
 from waterair.envs.rewards import Reward, le_reward_terms
+from waterair.physics.link import LinkBudget, fec_power, received_power, snr
+from waterair.training.builders import make_env
+from waterair.training.config import validate
+
+SMALL_ENV = ["env.num_envs=4", "env.n_freq=16", "env.n_dir=8", "env.compile_kernel=false"]
 
 
 @given(
@@ -65,3 +71,46 @@ def test_invalid_coefficients_are_config_errors(kwargs, key):
     with pytest.raises(ValueError) as info:
         Reward(**kwargs)
     assert str(info.value).startswith(f"{key} = ")
+
+
+def test_snr_reward_is_zero_at_the_fec_limit_minus_slope_in_the_dark_and_log_snr_above():
+    link = LinkBudget()
+    reward = Reward(name="snr", slope=2.0, link=link)
+    limit = fec_power(link) / link.received_power_per_gain  # the gain at the FEC limit (1/m²)
+    gain = torch.tensor([0.0, 0.5 * limit, limit, 10.0 * limit, 1e3 * limit], dtype=torch.float64)
+    values = reward(gain / 0.0186, None, gain)
+    noise = (link.background_power, link.receiver, link.bandwidth)
+    power = received_power(gain, link)
+    log_snr = torch.log10(snr(power[2:], *noise) / snr(power[2:3], *noise))
+    torch.testing.assert_close(values[2:], log_snr, rtol=1e-9, atol=1e-12)
+    assert values[0].item() == pytest.approx(-2.0) and values[1].item() == pytest.approx(-1.0)
+    assert values[2].item() == pytest.approx(0.0, abs=1e-9)
+    # strictly increasing and finite from no light to far above the limit, float32 as the env runs it
+    sweep = torch.cat((torch.zeros(1), torch.logspace(-4, 2, 400) * limit)).float()
+    out = reward(sweep, None, sweep)
+    assert torch.isfinite(out).all() and (out.diff() > 0).all()
+
+
+def test_snr_reward_needs_the_link_and_a_positive_slope():
+    with pytest.raises(ValueError, match=r"^reward.name = 'snr' needs the link group"):
+        Reward(name="snr")
+    with pytest.raises(ValueError, match=r"^reward.slope = 0.0 is out of range"):
+        Reward(name="snr", slope=0.0, link=LinkBudget())
+    with pytest.raises(ValueError, match=r"^reward.name = 'snr' is a reward of the gain"):
+        Reward(name="snr", link=LinkBudget())(torch.ones(2))
+
+
+def test_reward_snr_from_the_command_line_steps_the_env_on_the_links_budget():
+    cfg = compose_config("config", ["reward=snr", "link.power_w=0.2", *SMALL_ENV])
+    validate(cfg)
+    env = make_env(cfg)
+    reward = env.base_env.reward_fn
+    assert reward.name == "snr" and reward.link.power_w == 0.2 and reward.pointing == 0.05
+    steps = env.rollout(3, break_when_any_done=False)
+    nxt = steps["next"]
+    config = env.base_env.config
+    misalignment = (nxt["alpha_d"] / config.divergence + nxt["alpha_a"] / config.half_fov) * nxt["path_valid"]
+    expected = reward.of_gain(nxt["gain"]) - 0.05 * misalignment
+    torch.testing.assert_close(nxt["reward"].squeeze(-1), expected)
+    with pytest.raises(ValueError, match=r"^link.power_w = -1"):
+        validate(compose_config("config", ["reward=snr", "link.power_w=-1", *SMALL_ENV]))

@@ -18,6 +18,7 @@ from omegaconf import OmegaConf
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 import waterair.training.checkpoint as checkpoint_module
+from waterair.cli.training import summary
 from waterair.envs.config import EnvConfig
 from waterair.evaluation.policies import load_policy
 from waterair.evaluation.runner import compare_policies
@@ -30,6 +31,8 @@ SCALARS = {
     "train/mean_gain",
     "train/gain_ratio_ub",
     "train/outage",
+    "train/ber",
+    "train/fade_10db",
     "train/noise_scale",
     "loss/actor",
     "loss/critic",
@@ -127,6 +130,7 @@ def test_killed_run_resumes_to_the_configured_frames(tmp_path):
     # the closing summary, on the console and in train.log
     for text in (done.stdout, (run_dir / "train.log").read_text()):
         assert f"Run directory: {run_dir}" in text and "Frames: 2,400" in text and "flat-sea Snell" in text
+        assert "Its link (10 Mbit/s OOK, 50 mW): outage " in text and "mean BER " in text
 
     # resuming the finished run changes nothing and says so
     csv_before, checkpoint_before = (run_dir / "metrics.csv").read_bytes(), checkpoint.read_bytes()
@@ -141,6 +145,19 @@ def test_killed_run_resumes_to_the_configured_frames(tmp_path):
     assert done.returncode == 0, done.stderr[-3000:]
     assert torch.load(checkpoint, weights_only=True)["frames"] == 2800
     assert [step for step, _ in scalars(run_dir)["train/mean_gain"]][-2:] == [2400, 2800]
+
+
+def test_closing_summary_prints_the_links_outage_and_ber_beside_the_ratio(tmp_path):
+    metrics = {"frames": 800, "updates": 4, "episodes": 16, "upper_bound/outage": 0.0}
+    for label, ratio in (("agent", 0.9), ("flat_snell", 0.7), ("straight_facing", 0.6), ("aoa_tracker", 0.89)):
+        metrics.update({f"{label}/ratio_to_ub": ratio, f"{label}/outage": 0.0125, f"{label}/ber": 3.1e-4})
+    metrics["agent/rate"] = 7.9e7
+    text = summary(compose_cfg("link.power_w=0.2"), tmp_path, metrics, 61.0)
+    line = next(line for line in text.splitlines() if line.startswith("Its link"))
+    assert line == (
+        "Its link (10 Mbit/s OOK, 200 mW): outage 1.25% of the steps, mean BER 0.00031, mean rate at the FEC "
+        "limit 79 Mbit/s (the upper bound's outage 0.00%)"
+    )
 
 
 class Killed(Exception):

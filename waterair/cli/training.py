@@ -79,10 +79,19 @@ def summary(cfg: DictConfig, run_dir: Path, metrics: dict[str, float], seconds: 
             f"Greedy policy at U10 = {cfg.env.wind:g} m/s, offset {cfg.env.offset_ratio:.0%} "
             f"({cfg.eval.realisations} seas × {cfg.eval.steps} steps): {ratio['agent']:.3f} of the upper bound "
             f"({beside}flat-sea Snell {ratio['flat_snell']:.3f}, straight facing {ratio['straight_facing']:.3f})",
+            f"Its link ({_link_name(cfg)}): outage {metrics['agent/outage']:.2%} of the steps, mean BER "
+            f"{metrics['agent/ber']:.2g}, mean rate at the FEC limit {metrics['agent/rate'] / 1e6:.3g} Mbit/s "
+            f"(the upper bound's outage {metrics['upper_bound/outage']:.2%})",
             f"TensorBoard: .venv/bin/tensorboard --logdir {run_dir / 'tensorboard'}",
             f"Full evaluation: .venv/bin/python evaluate.py run={run_dir}",
         ]
     )
+
+
+def _link_name(cfg: DictConfig) -> str:
+    """E.g. ``10 Mbit/s OOK, 50 mW``: the operating point the outage is counted at."""
+    link = cfg.get("link") or {}
+    return f"{link.get('bit_rate', 1e7) / 1e6:g} Mbit/s OOK, {link.get('power_w', 0.05) * 1e3:g} mW"
 
 
 def _saved_metrics(run_dir: Path) -> dict:

@@ -1,8 +1,12 @@
-"""Rewards as functions of the normalised intensity I = G / G_0 (docs/model.md §7, paper Sec. IV-B).
+"""Rewards of the normalised intensity I = G / G_0 or of the link (docs/model.md §7, paper Sec. IV-B).
 
 * ``le`` (the paper's logarithm-exponential): R(I) = G_r (ln(a I + 1) + log10(b I) + exp(c I)) + B
 * ``linear``: R(I) = I
 * ``log``: R(I) = log10(max(I, floor))
+* ``snr``: of the link budget (docs/model.md §9): with P_r the received power of G and P_FEC the
+  power at the FEC limit, R = log10(SNR(P_r) / SNR(P_FEC)) where the link is up (0 at the limit),
+  and slope · (P_r / P_FEC − 1) below it (from −slope at no light up to 0), so that a link in
+  outage still has a gradient toward the limit.
 
 Each may add a pointing term with a slope where no light arrives: R − pointing · m, where
 m = α_D / ω_D + α_A / ω_A is the misalignment of both ends from the present path in units of the
@@ -17,14 +21,16 @@ increasing in I above the floor (and constant-free of NaN/inf everywhere).
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import torch
 
 from waterair.core.validation import check_choice, check_range
+from waterair.physics.link import LinkBudget, fec_power, received_power, snr
 
-REWARD_NAMES = ("le", "linear", "log")
+REWARD_NAMES = ("le", "linear", "log", "snr")
 
 
 @dataclass(frozen=True)
@@ -32,7 +38,7 @@ class Reward:
     """A validated reward of the normalised intensity I (dimensionless).
 
     Attributes:
-        name: ``le``, ``linear`` or ``log`` (the ``reward`` group's option).
+        name: ``le``, ``linear``, ``log`` or ``snr`` (the ``reward`` group's option).
         a: ln-term coefficient, > 0.
         b: log10-term coefficient, > 0.
         c: exp-term coefficient, ≥ 0 (≤ 10, so that exp(c I) stays finite for I ≤ 10).
@@ -40,6 +46,8 @@ class Reward:
         bias: additive bias B.
         floor: the smallest I fed to the log terms, in (0, 1).
         pointing: weight of the misalignment penalty, ≥ 0 (0: the reward of I alone).
+        slope: ``snr`` only: the reward at no light is −slope, in (0, 100].
+        link: ``snr`` only: the link budget (the ``link`` group with the channel's optics).
 
     Defaults (a = 10, b = 100, c = 0.7, floor = 1e-3, gain = 0.1, bias = 0): over the intensities
     the environment produces (I ≈ 0 misaligned to I ≈ 1-2 aligned, see docs/environment.md) the
@@ -57,6 +65,10 @@ class Reward:
     bias: float = 0.0
     floor: float = 1e-3
     pointing: float = 0.0
+    slope: float = 1.0
+    link: LinkBudget | None = None
+    limit: tuple[float, float] = field(init=False, default=(math.nan, math.nan), repr=False, compare=False)
+    """``snr``: P_FEC (W) and SNR(P_FEC), computed once here so that the step needs no host work."""
 
     def __post_init__(self) -> None:
         check_choice("reward.name", self.name, REWARD_NAMES)
@@ -67,11 +79,25 @@ class Reward:
         check_range("reward.bias", self.bias, -1e6, 1e6)
         check_range("reward.floor", self.floor, 0.0, 1.0, low_open=True, high_open=True)
         check_range("reward.pointing", self.pointing, 0.0, 1e3)
+        check_range("reward.slope", self.slope, 0.0, 100.0, low_open=True)
+        if self.name == "snr" and self.link is None:
+            raise ValueError("reward.name = 'snr' needs the link group (link: the budget it reads)")
+        if self.link is not None:
+            power = fec_power(self.link)
+            at_limit = snr(torch.tensor(power, dtype=torch.float64), *self._noise()).item()
+            object.__setattr__(self, "limit", (power, at_limit))
 
-    def __call__(self, intensity: torch.Tensor, misalignment: torch.Tensor | None = None) -> torch.Tensor:
-        """Reward of intensity I ≥ 0 (any shape), less ``pointing`` × ``misalignment`` (same shape)
-        when given; finite for every finite I in [0, 10]."""
-        reward = self.of_intensity(intensity)
+    def __call__(
+        self, intensity: torch.Tensor, misalignment: torch.Tensor | None = None, gain: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """Reward of intensity I ≥ 0 (any shape), or of the gain G (1/m², same shape; ``snr``), less
+        ``pointing`` × ``misalignment`` (same shape) when given; finite for every finite I in [0, 10]."""
+        if self.name == "snr":
+            if gain is None:
+                raise ValueError("reward.name = 'snr' is a reward of the gain; call it with gain=")
+            reward = self.of_gain(gain)
+        else:
+            reward = self.of_intensity(intensity)
         if misalignment is None or self.pointing == 0.0:
             return reward
         return reward - self.pointing * misalignment
@@ -86,14 +112,26 @@ class Reward:
         terms = torch.log1p(self.a * intensity) + torch.log10(self.b * clamped) + torch.exp(self.c * intensity)
         return self.gain * terms + self.bias
 
+    def of_gain(self, gain: torch.Tensor) -> torch.Tensor:
+        """The ``snr`` reward of channel gains G (1/m²): log10 SNR relative to the FEC limit, a slope below it."""
+        assert self.link is not None  # __post_init__ guarantees it for snr
+        limit, at_limit = self.limit
+        power = received_power(gain, self.link)
+        above = torch.log10(snr(power.clamp(min=limit), *self._noise()) / at_limit)
+        return torch.where(power >= limit, above, self.slope * (power / limit - 1.0))
+
+    def _noise(self) -> tuple:
+        assert self.link is not None
+        return self.link.background_power, self.link.receiver, self.link.bandwidth
+
     @classmethod
-    def from_mapping(cls, values: Mapping) -> Reward:
-        """Build from a plain mapping (a resolved ``reward`` group); unknown keys are errors."""
-        known = [f.name for f in dataclasses.fields(cls)]
+    def from_mapping(cls, values: Mapping, link: LinkBudget | None = None) -> Reward:
+        """Build from a plain mapping (a resolved ``reward`` group) and the link budget; unknown keys are errors."""
+        known = [f.name for f in dataclasses.fields(cls) if f.init and f.name != "link"]
         unknown = sorted(set(values) - set(known))
         if unknown:
             raise ValueError(f"reward.{unknown[0]} is not a known key; allowed: {', '.join(known)}")
-        return cls(**values)
+        return cls(**values, link=link)
 
 
 def le_reward_terms(intensity: torch.Tensor, reward: Reward) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

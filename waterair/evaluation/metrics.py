@@ -2,15 +2,18 @@
 
 All take gains ``[R, T]`` (realisations × steps, 1/m²) and reduce over everything; confidence
 intervals treat each realisation (one sea) as one independent sample, since steps of one sea are
-strongly correlated.
+strongly correlated. What the link delivers (BER, outage, rate) comes from the link budget,
+:func:`waterair.physics.link.link_performance`, of each step's gain.
 """
 
 from __future__ import annotations
 
 import torch
 
-OUTAGE_FRACTION = 0.1
-"""A step is an outage when G < 0.1 G_0 (docs/model.md §8)."""
+from waterair.physics.link import LinkBudget, link_performance
+
+FADE_FRACTION = 0.1
+"""A step is a 10 dB fade when G < 0.1 G_0 (docs/model.md §8): a fade, not an outage, which the link budget defines."""
 
 
 def mean_gain(gain: torch.Tensor) -> float:
@@ -28,13 +31,26 @@ def sigma2_diff(gain: torch.Tensor, upper: torch.Tensor) -> float:
     return (upper.double() - gain.double()).var(unbiased=False).item()
 
 
-def outage_probability(gain: torch.Tensor, reference: torch.Tensor) -> float:
-    """P(G < 0.1 G_0); ``reference`` is G_0, broadcastable against ``gain``."""
-    return (gain < OUTAGE_FRACTION * reference).double().mean().item()
+def fade_probability(gain: torch.Tensor, reference: torch.Tensor) -> float:
+    """P(G < 0.1 G_0), the share of steps 10 dB or more below the calm-sea gain; ``reference`` is G_0,
+    broadcastable against ``gain``."""
+    return (gain < FADE_FRACTION * reference).double().mean().item()
 
 
-METRICS = ("mean_gain", "ratio_to_ub", "sigma2_diff", "outage", "valid_share", "mean_intensity")
-"""What :func:`scenario_metrics` reports, each with ``_lo`` / ``_hi`` bounds."""
+METRICS = (
+    "mean_gain",
+    "ratio_to_ub",
+    "sigma2_diff",
+    "fade_10db",
+    "valid_share",
+    "mean_intensity",
+    "ber",
+    "outage",
+    "rate",
+)
+"""What :func:`scenario_metrics` reports, each with ``_lo`` / ``_hi`` bounds: ``ber`` the mean bit error
+rate, ``outage`` the share of steps with BER above the FEC limit, ``rate`` the mean bit rate at the FEC
+limit (bit/s), all of the link budget."""
 
 
 def scenario_metrics(
@@ -43,6 +59,7 @@ def scenario_metrics(
     reference: torch.Tensor,
     valid: torch.Tensor,
     *,
+    link: LinkBudget | None = None,
     level: float = 0.95,
     resamples: int = 2000,
     seed: int = 0,
@@ -51,12 +68,14 @@ def scenario_metrics(
 
     ``gain``, ``upper`` (G_UB) and ``valid`` are ``[R, T]``; ``reference`` is G_0 per realisation
     ``[R]`` (or a scalar). The point values are the plain definitions over all R·T steps: mean G,
-    mean(G)/mean(G_UB), var(G_UB − G), P(G < 0.1 G_0), the valid-path share and mean(G / G_0).
+    mean(G)/mean(G_UB), var(G_UB − G), P(G < 0.1 G_0), the valid-path share, mean(G / G_0), and of
+    ``link`` (default: :class:`LinkBudget`'s defaults) the mean BER, P(BER > FEC limit) and the mean
+    bit rate at the FEC limit.
     Each gets ``<name>_lo`` / ``<name>_hi``: the percentile interval of ``resamples`` bootstrap
     draws of whole realisations (seeded, so a report is reproducible). Per-realisation sums are
     resampled, which is exact and costs O(resamples × R).
     """
-    stats = _realisation_sums(gain, upper, reference, valid)
+    stats = _realisation_sums(gain, upper, reference, valid, link or LinkBudget())
     point = _metrics_from_sums(stats.sum(0, keepdim=True), steps=gain.shape[-1] * gain.shape[0])
     generator = torch.Generator().manual_seed(seed)
     count = stats.shape[0]
@@ -72,26 +91,32 @@ def scenario_metrics(
     return out
 
 
-def _realisation_sums(gain, upper, reference, valid) -> torch.Tensor:
-    """``[R, 7]`` per-realisation sums: G, G_UB, D = G_UB − G, D², outages, valid steps, G / G_0."""
+def _realisation_sums(gain, upper, reference, valid, link: LinkBudget) -> torch.Tensor:
+    """``[R, 10]`` per-realisation sums: G, G_UB, D = G_UB − G, D², fades, valid steps, G / G_0, BER,
+    outages, bit rates."""
     gain, upper = gain.double().reshape(gain.shape[0], -1), upper.double().reshape(gain.shape[0], -1)
     reference = torch.as_tensor(reference, dtype=torch.float64).reshape(-1, 1).expand(gain.shape[0], 1)
     diff = upper - gain
+    delivered = link_performance(gain, link)
     columns = (
         gain,
         upper,
         diff,
         diff**2,
-        (gain < OUTAGE_FRACTION * reference).double(),
+        (gain < FADE_FRACTION * reference).double(),
         valid.reshape(gain.shape[0], -1).double(),
         gain / reference,
+        delivered.ber,
+        delivered.outage.double(),
+        delivered.max_bit_rate,
     )
     return torch.stack([c.sum(-1) for c in columns], dim=-1)
 
 
 def _metrics_from_sums(sums: torch.Tensor, steps: int) -> torch.Tensor:
-    """``[..., 7]`` summed statistics over ``steps`` samples → ``[..., len(METRICS)]`` in METRICS order."""
-    g, u, d, d2, outage, valid, intensity = sums.unbind(-1)
+    """``[..., 10]`` summed statistics over ``steps`` samples → ``[..., len(METRICS)]`` in METRICS order."""
+    g, u, d, d2, fade, valid, intensity, ber, outage, rate = sums.unbind(-1)
     variance = (d2 / steps - (d / steps) ** 2).clamp(min=0.0)
     ratio = torch.where(u > 0, g / u.clamp(min=1e-300), torch.zeros_like(g))  # no valid path at all: 0
-    return torch.stack((g / steps, ratio, variance, outage / steps, valid / steps, intensity / steps), dim=-1)
+    means = (fade, valid, intensity, ber, outage, rate)
+    return torch.stack((g / steps, ratio, variance, *(m / steps for m in means)), dim=-1)

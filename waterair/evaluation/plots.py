@@ -1,4 +1,4 @@
-"""Evaluation figures (paper Figs. "gain over time", "average gain", "σ²_diff", and the wind sweep).
+"""Evaluation figures: the paper's "gain over time", "average gain" and "σ²_diff", the sweeps, the BER and outage.
 
 Each function takes an :class:`waterair.evaluation.Evaluation` and writes one PNG; a figure whose
 scenario was not evaluated is skipped. Every policy has its own colour, marker and line style (fixed
@@ -14,6 +14,8 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+
+from waterair.physics.link import link_performance  # noqa: E402
 
 STYLES = {
     "bound": ("black", "o", (0, (6, 3)), 1.6),
@@ -37,6 +39,8 @@ LEARNED_STYLES = (
     ("tab:olive", "h", "-", 2.2),
 )
 """Learned policies: solid and thick, told apart by colour and marker."""
+BER_FLOOR = 1e-12
+"""BER figures draw a BER below it (down to 0 in float64 on a well aligned step) at it."""
 MARKS_PER_TRACE = 12
 """Markers along a time trace (staggered per policy so that overlapping lines stay distinguishable)."""
 
@@ -47,11 +51,14 @@ def evaluation_figures(result, out: Path) -> list[Path]:
     written = []
     if "S1" in names:
         written.append(gain_vs_time(result, out / "gain_vs_time.png"))
+        written.append(ber_vs_time(result, out / "ber_vs_time.png"))
     if "S2" in names:
         written.append(gain_vs_sweep(result, "S2", out / "gain_vs_offset.png"))
         written.append(sigma_diff_vs_offset(result, out / "sigma_diff_vs_offset.png"))
+        written.append(outage_vs_sweep(result, "S2", out / "outage_vs_offset.png"))
     if "S3" in names:
         written.append(gain_vs_sweep(result, "S3", out / "gain_vs_wind.png"))
+        written.append(outage_vs_sweep(result, "S3", out / "outage_vs_wind.png"))
     if "S4" in names:
         written.append(gain_vs_sweep(result, "S4", out / "gain_vs_azimuth.png"))
     return written
@@ -79,6 +86,55 @@ def gain_vs_time(result, path: Path) -> Path:
     axes[1].set_xlabel("time (s)")
     fig.suptitle(scenario.title)
     return _save_with_legend(fig, axes[0], path)
+
+
+def ber_vs_time(result, path: Path) -> Path:
+    """S1: the link's BER(t) of every policy on one sea realisation, and the mean over all realisations."""
+    scenario = _scenario(result, "S1")
+    traces = result.traces["S1"]
+    time = [result.dt * (k + 1) for k in range(scenario.steps)]
+    spacing = max(1, scenario.steps // MARKS_PER_TRACE)
+    fig, axes = plt.subplots(2, 1, figsize=(9, 7.5), sharex=True)
+    for ax, title, reduce in (
+        (axes[0], "one sea realisation (the first)", lambda b: b[0]),
+        (axes[1], f"mean over {scenario.realisations} realisations", lambda b: b.mean(0)),
+    ):
+        for index, policy in enumerate(result.policies):
+            ber = link_performance(traces[policy["label"]]["gain"][:, 0].double(), result.link).ber
+            colour, marker, style, width = _style(result, policy)
+            ax.plot(time, reduce(ber).clamp(min=BER_FLOOR), color=colour, linestyle=style, linewidth=width,
+                    marker=marker, markersize=5, markevery=(index * spacing // len(result.policies), spacing),
+                    label=policy["label"])  # fmt: skip
+        ax.axhline(result.link.fec_limit, color="crimson", linewidth=1.0, label="FEC limit")
+        ax.set_yscale("log")
+        ax.set_ylim(BER_FLOOR / 3, 1.0)
+        ax.set_ylabel("bit error rate")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3, which="both")
+    axes[1].set_xlabel("time (s)")
+    link = f"{result.link.bit_rate / 1e6:g} Mbit/s OOK, {result.link.power_w * 1e3:g} mW"
+    fig.suptitle(f"{scenario.title}\n{link}: outage above the FEC limit; a BER below {BER_FLOOR:g} drawn at it")
+    return _save_with_legend(fig, axes[0], path)
+
+
+def outage_vs_sweep(result, name: str, path: Path) -> Path:
+    """S2 or S3: the link's outage probability (BER above the FEC limit) per point, with its interval."""
+    scenario = _scenario(result, name)
+    x = _axis_values(scenario)
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    for policy in result.policies:
+        rows = _rows(result, name, policy["label"])
+        colour, marker, style, width = _style(result, policy)
+        ax.plot(x, [r["outage"] for r in rows], color=colour, marker=marker, linestyle=style, linewidth=width,
+                label=policy["label"])  # fmt: skip
+        ax.fill_between(x, [r["outage_lo"] for r in rows], [r["outage_hi"] for r in rows], color=colour, alpha=0.12)
+    ax.set_xlabel(_axis_label(scenario))
+    ax.set_ylabel(f"outage probability P(BER > {result.link.fec_limit:g})")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_title(f"{scenario.title}: the link's outage at {result.link.bit_rate / 1e6:g} Mbit/s (lower is better)",
+                 fontsize=10)  # fmt: skip
+    ax.grid(alpha=0.3)
+    return _save_with_legend(fig, ax, path)
 
 
 def gain_vs_sweep(result, name: str, path: Path) -> Path:

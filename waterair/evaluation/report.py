@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -12,8 +13,11 @@ from waterair.evaluation import plots
 from waterair.evaluation.figures import physics_figures
 from waterair.evaluation.metrics import METRICS
 from waterair.evaluation.runner import UPPER_BOUND, Evaluation
+from waterair.physics.link import fec_power
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
+"""3: the link budget's ``ber``, ``outage`` and ``rate`` per row, ``link`` at the top; 2's ``outage``
+(P(G < 0.1 G_0)) is ``fade_10db``."""
 AXES = ("wind", "offset_ratio", "offset_azimuth_deg")
 """The three coordinates of a scenario point, in order."""
 ROW_KEYS = (
@@ -51,6 +55,7 @@ def _write_json(result: Evaluation, path: Path, cfg: DictConfig) -> Path:
         "device": result.device,
         "seconds": round(result.seconds, 2),
         "bootstrap": OmegaConf.to_container(cfg.bootstrap, resolve=True),
+        "link": _link_summary(result),
         "policies": result.policies,
         "scenarios": [
             {
@@ -70,6 +75,19 @@ def _write_json(result: Evaluation, path: Path, cfg: DictConfig) -> Path:
     return atomic_write_text(path, json.dumps(data, indent=2, allow_nan=True))
 
 
+def _link_summary(result: Evaluation) -> dict:
+    """The budget's values (its ``link`` keys) and what they give: P_r per gain, P_b and the FEC limit's power."""
+    link = result.link
+    receiver = dataclasses.asdict(link.receiver)
+    own = {k: v for k, v in vars(link).items() if k not in ("receiver", "optics")}
+    derived = {
+        "received_power_per_gain": link.received_power_per_gain,
+        "background_power": link.background_power,
+        "fec_power": fec_power(link),
+    }
+    return {**own, **receiver, **derived}
+
+
 def _write_csv(result: Evaluation, path: Path) -> Path:
     return atomic_write_csv(path, ROW_KEYS, result.rows)
 
@@ -85,9 +103,14 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
         f"- baselines: {', '.join(p['label'] for p in result.policies if p['kind'] == 'baseline')}",
         f"- `{UPPER_BOUND}`: both ends along the exact current path (docs/model.md §4)",
         "",
-        "Ratios are mean(G) / mean(G_UB); σ²_diff = var(G_UB − G) in m⁻⁴; outage is P(G < 0.1 G_0). Brackets "
-        "are 95 % bootstrap intervals over sea realisations. σ²_diff alone rewards a policy that receives "
-        "nothing (then it is var(G_UB)): read it next to the ratio.",
+        "Ratios are mean(G) / mean(G_UB); σ²_diff = var(G_UB − G) in m⁻⁴; G < 0.1 G_0 is the share of "
+        "steps in a 10 dB fade below the calm-sea gain. Brackets are 95 % bootstrap intervals over sea "
+        "realisations. σ²_diff alone rewards a policy that receives nothing (then it is var(G_UB)): read it "
+        "next to the ratio.",
+        "",
+        f"The link (docs/model.md §9): {_link_line(result)}. Outage is the share of steps with a BER above "
+        f"the FEC limit {result.link.fec_limit:g}; BER is the mean over steps; rate is the mean bit rate the "
+        "link sustains at the FEC limit.",
         "",
     ]
     for scenario in result.scenarios:
@@ -101,14 +124,17 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
         if scenario.axis is None:
             point = scenario.points[0]
             lines += [
-                "| policy | mean G (m⁻²) | ratio to UB | σ²_diff (m⁻⁴) | outage | valid paths |",
-                "|---|---|---|---|---|---|",
+                "| policy | mean G (m⁻²) | ratio to UB | σ²_diff (m⁻⁴) | outage | mean BER | rate (Mbit/s) "
+                "| G < 0.1 G_0 | valid paths |",
+                "|---|---|---|---|---|---|---|---|---|",
             ]
             for policy in result.policies:
                 r = result.row(scenario.name, policy["label"], point)
                 lines.append(
                     f"| {policy['label']} | {r['mean_gain']:.4g} [{r['mean_gain_lo']:.4g}, {r['mean_gain_hi']:.4g}] "
-                    f"| {r['ratio_to_ub']:.3f} | {r['sigma2_diff']:.3g} | {r['outage']:.2%} | {r['valid_share']:.1%} |"
+                    f"| {r['ratio_to_ub']:.3f} | {r['sigma2_diff']:.3g} "
+                    f"| {r['outage']:.3%} [{r['outage_lo']:.3%}, {r['outage_hi']:.3%}] | {r['ber']:.2g} "
+                    f"| {r['rate'] / 1e6:.3g} | {r['fade_10db']:.2%} | {r['valid_share']:.1%} |"
                 )
         else:
             column = {"offset_ratio": "offset", "wind": "U10 (m/s)", "offset_azimuth_deg": "azimuth (deg)"}[
@@ -116,13 +142,13 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
             ]
             values = [dict(zip(AXES, p, strict=True))[scenario.axis] for p in scenario.points]
             labels = [p["label"] for p in result.policies]
-            lines += ["Ratio to the upper bound (σ²_diff in m⁻⁴ below it):", ""]
+            lines += ["Ratio to the upper bound, σ²_diff (m⁻⁴) below it, and the link's outage below that:", ""]
             lines += [f"| {column} | " + " | ".join(labels) + " |", "|---" * (len(labels) + 1) + "|"]
             for point, value in zip(scenario.points, values, strict=True):
                 cells = []
                 for label in labels:
                     r = result.row(scenario.name, label, point)
-                    cells.append(f"{r['ratio_to_ub']:.3f}<br>{r['sigma2_diff']:.2g}")
+                    cells.append(f"{r['ratio_to_ub']:.3f}<br>{r['sigma2_diff']:.2g}<br>{r['outage']:.2%}")
                 shown = f"{value:.0%}" if scenario.axis == "offset_ratio" else f"{value:g}"
                 lines.append(f"| {shown} | " + " | ".join(cells) + " |")
         lines.append("")
@@ -130,3 +156,14 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
     for figure in figures:
         lines += [f"![{figure.stem}]({figure.name})", ""]
     return atomic_write_text(path, "\n".join(lines))
+
+
+def _link_line(result: Evaluation) -> str:
+    """E.g. ``50 mW at 520 nm, APD (M = 40), background 0.005 W/(m² sr nm), 10 Mbit/s OOK``."""
+    link = result.link
+    receiver = f"APD (M = {link.receiver.gain:g})" if link.receiver.gain > 1 else "PIN photodiode"
+    return (
+        f"{link.power_w * 1e3:g} mW at {link.optics.wavelength * 1e9:g} nm, {receiver}, background "
+        f"{link.background_radiance:g} W/(m² sr nm), {link.bit_rate / 1e6:g} Mbit/s OOK; in outage below "
+        f"P_r = {fec_power(link) * 1e9:.3g} nW, G = {fec_power(link) / link.received_power_per_gain:.3g} m⁻²"
+    )

@@ -27,9 +27,11 @@ from waterair.envs.baselines import BASELINES
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import CONTROLLERS
 from waterair.envs.env import WaterAirEnv
+from waterair.envs.link import link_budget
 from waterair.evaluation.metrics import scenario_metrics
 from waterair.evaluation.policies import INTERFACE_KEYS, LearnedPolicy, as_list, checkpoint_sources, load_policy
 from waterair.evaluation.scenarios import Scenario, scenarios_from_config
+from waterair.physics.link import LinkBudget
 
 UPPER_BOUND = "upper_bound"
 REFERENCES = {**BASELINES, **CONTROLLERS}
@@ -63,6 +65,7 @@ class Evaluation:
     traces: dict[str, dict[str, dict[str, torch.Tensor]]] = field(default_factory=dict)
     """scenario → policy → ``gain`` / ``gain_upper_bound`` traces ``[R, P, T]``."""
     env: EnvConfig = field(default_factory=EnvConfig)  # the scenario physics (sea, geometry, dt, device)
+    link: LinkBudget = field(default_factory=LinkBudget)  # what turns each step's gain into BER, outage, rate
     seconds: float = 0.0
 
     @property
@@ -82,18 +85,24 @@ class Evaluation:
 
 
 def compare_policies(
-    env_config: EnvConfig, policies: Mapping[str, object], scenario: Scenario, bootstrap: Bootstrap = Bootstrap()
+    env_config: EnvConfig,
+    policies: Mapping[str, object],
+    scenario: Scenario,
+    bootstrap: Bootstrap = Bootstrap(),
+    link: LinkBudget | None = None,
 ) -> dict[str, dict[str, float]]:
     """Metrics of ``policies`` (label → actor or baseline name) on the first point of ``scenario``, same seas.
 
-    The upper bound is included as ``upper_bound``.
+    The upper bound is included as ``upper_bound``; the link metrics are of ``link`` (default: the
+    default budget on ``env_config``'s channel).
     """
+    link = link or link_budget(None, env_config)
     runs = rollout_policies(
         env_config, list(policies.items()), scenario.points[:1], scenario.realisations, scenario.steps, scenario.seed
     )
     first = next(iter(runs.values()))
     runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
-    return {label: _point_metrics(t, 0, bootstrap) for label, t in runs.items()}
+    return {label: _point_metrics(t, 0, bootstrap, link) for label, t in runs.items()}
 
 
 @dataclass
@@ -103,6 +112,7 @@ class EvaluationPlan:
     scenarios: list[Scenario]
     bootstrap: Bootstrap
     env: EnvConfig  # the scenario physics (sea, geometry, dt, device) and the baselines' interface
+    link: LinkBudget
     baselines: list[str]
     policies: list[LearnedPolicy]
     learned: list[tuple]  # (policy, its env config, its actor on the device)
@@ -121,6 +131,7 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
     base = EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
     device = resolve_device(base.device, "env.device")
     base = base.replace(device=str(device))  # reports name the device that ran, not "auto"
+    link = link_budget(OmegaConf.to_container(cfg.link, resolve=True), base)
     scenario_env = {key: getattr(base, key) for key in INTERFACE_KEYS}
     baselines = as_list(cfg.baselines)
     unknown = [name for name in baselines if name not in REFERENCES]
@@ -149,7 +160,7 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
                 )
     together = bool(cfg.get("batch_policies", True))
     groups = _policy_groups(base, baselines, learned, together)
-    return EvaluationPlan(scenarios, bootstrap, base, baselines, list(policies), learned, together, groups)
+    return EvaluationPlan(scenarios, bootstrap, base, link, baselines, list(policies), learned, together, groups)
 
 
 def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, progress=print) -> Evaluation:
@@ -171,6 +182,7 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
             if isinstance(name, str)
         ],
         env=plan.env,
+        link=plan.link,
     )
     # Scenarios with the same realisations, steps and seed run as one batch over the union of their
     # points; within it, every group of policies sharing an interface runs as replicas of one env.
@@ -317,7 +329,7 @@ def _collect(result: Evaluation, scenario: Scenario, runs: dict[str, dict], boot
                     "offset_azimuth_deg": azimuth,
                     "policy": label,
                     "kind": kinds[label],
-                    **_point_metrics(t, index, bootstrap),
+                    **_point_metrics(t, index, bootstrap, result.link),
                     "reference_gain": t["reference_gain"][:, index].double().mean().item(),
                     "realisations": scenario.realisations,
                     "steps": scenario.steps,
@@ -329,13 +341,14 @@ def _collect(result: Evaluation, scenario: Scenario, runs: dict[str, dict], boot
     }
 
 
-def _point_metrics(traces: dict[str, torch.Tensor], index: int, bootstrap: Bootstrap) -> dict[str, float]:
-    """Every metric of point ``index`` of one policy's traces ``[R, P, T]``."""
+def _point_metrics(traces: dict[str, torch.Tensor], index: int, bootstrap: Bootstrap, link: LinkBudget) -> dict:
+    """Every metric of point ``index`` of one policy's traces ``[R, P, T]``, the link's of ``link``."""
     return scenario_metrics(
         traces["gain"][:, index],
         traces["gain_upper_bound"][:, index],
         traces["reference_gain"][:, index],
         traces["path_valid"][:, index],
+        link=link,
         level=bootstrap.level,
         resamples=bootstrap.resamples,
         seed=bootstrap.seed,

@@ -2,7 +2,7 @@
 
 Imports only torch and tensordict, so it can be used on its own (a notebook, another simulator)::
 
-    from waterair.physics import SeaState, WaveSurface, LinkGeometry, solve_path
+    from waterair.physics import SeaState, WaveSurface, LinkGeometry, solve_path, LinkBudget, link_performance
 
 Equations and the corrections to the paper are in docs/model.md.
 """
@@ -21,6 +21,7 @@ from waterair.physics.channel import (
     two_scale_light,
     upper_bound,
 )
+from waterair.physics.link import LinkBudget, LinkPerformance, Receiver, link_performance
 from waterair.physics.montecarlo import MonteCarloLight, trace
 from waterair.physics.paths import CentroidOptions, NewtonOptions, PathSolution, flat_sea_point, solve_path
 from waterair.physics.paths.census import RefractionPoints, refraction_points
@@ -31,11 +32,14 @@ __all__ = [
     "CentroidOptions",
     "ChannelGain",
     "LightSamples",
+    "LinkBudget",
     "LinkGeometry",
+    "LinkPerformance",
     "MeanSquareSlope",
     "MonteCarloLight",
     "NewtonOptions",
     "PathSolution",
+    "Receiver",
     "RefractionPoints",
     "SeaState",
     "SurfaceSample",
@@ -49,6 +53,7 @@ __all__ = [
     "flat_sea_point",
     "gain_upper_bound",
     "jonswap",
+    "link_performance",
     "pointing",
     "received_gain",
     "refraction_points",

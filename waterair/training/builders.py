@@ -27,7 +27,9 @@ from waterair.agents.networks import make_critic as build_critic
 from waterair.agents.networks import make_gaussian_policy, make_value
 from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
+from waterair.envs.link import link_budget
 from waterair.envs.rewards import Reward
+from waterair.physics.link import LinkBudget
 
 TRANSITION_KEYS = (
     "observation",
@@ -47,10 +49,22 @@ def env_config(cfg: DictConfig, **overrides) -> EnvConfig:
     return EnvConfig.from_mapping({**OmegaConf.to_container(cfg.env, resolve=True), **overrides})
 
 
+def make_link(cfg: DictConfig, config: EnvConfig | None = None) -> LinkBudget:
+    """The link budget of the ``link`` group on the channel of ``config`` (default: the ``env`` group's)."""
+    values = OmegaConf.to_container(cfg.link, resolve=True) if "link" in cfg else None
+    return link_budget(values, config or env_config(cfg))
+
+
+def make_reward(cfg: DictConfig, config: EnvConfig | None = None) -> Reward:
+    """The reward of the ``reward`` group (``snr`` reads the link budget)."""
+    return Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True), link=make_link(cfg, config))
+
+
 def make_env(cfg: DictConfig) -> TransformedEnv:
     """The batched environment with episode-reward and init tracking (the OU noise needs is_init)."""
-    reward = Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True))
-    return TransformedEnv(WaterAirEnv(env_config(cfg), reward=reward), Compose(InitTracker(), RewardSum()))
+    config = env_config(cfg)
+    reward = make_reward(cfg, config)
+    return TransformedEnv(WaterAirEnv(config, reward=reward), Compose(InitTracker(), RewardSum()))
 
 
 def make_actor(cfg: DictConfig, env, device) -> TensorDictModule:

@@ -14,6 +14,7 @@ from waterair.agents.networks import ACTIVATIONS
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.config import EnvConfig
+from waterair.envs.link import link_budget
 from waterair.envs.rewards import Reward
 from waterair.training.compiling import CHOICES as COMPILE_CHOICES
 
@@ -43,11 +44,13 @@ OmegaConf.register_new_resolver("gpus_for_device", lambda device: 1 if device ==
 
 def validate(cfg: DictConfig) -> None:
     """Check every key before any work; raise ``ValueError`` naming key, value and allowed range."""
-    env = OmegaConf.to_container(cfg.env, resolve=True)
-    for key, value in (("env.compile_kernel", env.get("compile_kernel")), ("compile_update", cfg.compile_update)):
+    values = OmegaConf.to_container(cfg.env, resolve=True)
+    for key, value in (("env.compile_kernel", values.get("compile_kernel")), ("compile_update", cfg.compile_update)):
         check_choice(key, str(value).lower(), COMPILE_CHOICES)
-    EnvConfig.from_mapping({**env, "compile_kernel": False})  # true, false or auto: decided when the run starts
-    Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True))
+    env = EnvConfig.from_mapping({**values, "compile_kernel": False})  # true, false or auto: decided at the start
+    # a run saved before the link group has none: its link metrics use the default budget
+    link = link_budget(OmegaConf.to_container(cfg.link, resolve=True) if "link" in cfg else None, env)
+    Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True), link=link)
     resolve_device(cfg.device)  # cuda without a CUDA device is an error now, not after the set-up
     check_int("seed", cfg.seed, 0, 2**63 - 1)
     check_int("total_frames", cfg.total_frames, 1)

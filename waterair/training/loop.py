@@ -19,9 +19,10 @@ from waterair.agents.checkpoint import load_state
 from waterair.core.devices import resolve_device
 from waterair.core.files import atomic_write_json, atomic_write_text
 from waterair.envs.controllers import controller_for
-from waterair.evaluation.metrics import METRICS, OUTAGE_FRACTION
+from waterair.evaluation.metrics import FADE_FRACTION, METRICS
 from waterair.evaluation.runner import compare_policies
 from waterair.evaluation.scenarios import Scenario
+from waterair.physics.link import LinkBudget, link_performance
 from waterair.training.builders import (
     env_config,
     make_actor,
@@ -31,6 +32,7 @@ from waterair.training.builders import (
     make_env,
     make_exploration,
     make_learn,
+    make_link,
     make_loss,
     make_optimisers,
     make_update,
@@ -67,6 +69,7 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
 
     # Create the environment, agent, exploration, optimisers and replay buffer
     env = make_env(cfg)
+    link = make_link(cfg)
     actor, critic = make_actor(cfg, env, device), make_critic(cfg, env, device)
     exploration, noise = make_exploration(cfg, actor, env, device)
     loss, target_update = make_loss(cfg, actor, exploration, critic, env)
@@ -105,7 +108,7 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
         clock = time.perf_counter()
         losses = learn(batch, counters)
         update_seconds = time.perf_counter() - clock
-        scalars = batch_scalars(batch, losses, noise, env_seconds, update_seconds)
+        scalars = batch_scalars(batch, losses, noise, env_seconds, update_seconds, link)
         counters.episodes += int(batch["next", "done"].sum())
         log.scalars(counters.frames, scalars)
         bar.update(batch.numel())
@@ -139,14 +142,19 @@ def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = prin
     return metrics
 
 
-def batch_scalars(batch, losses, noise, env_seconds: float, update_seconds: float) -> dict[str, float]:
-    """TensorBoard/CSV scalars of one collected batch."""
+def batch_scalars(
+    batch, losses, noise, env_seconds: float, update_seconds: float, link: LinkBudget | None = None
+) -> dict[str, float]:
+    """TensorBoard/CSV scalars of one collected batch; the link's outage and BER of ``link`` (default budget)."""
     nxt = batch["next"]
     gain, upper = nxt["gain"].double(), nxt["gain_upper_bound"].double()
+    delivered = link_performance(gain, link or LinkBudget())
     scalars = {
         "train/mean_gain": gain.mean().item(),
         "train/gain_ratio_ub": (gain.mean() / upper.mean()).item(),
-        "train/outage": (nxt["intensity"] < OUTAGE_FRACTION).double().mean().item(),
+        "train/outage": delivered.outage.double().mean().item(),
+        "train/ber": delivered.ber.mean().item(),
+        "train/fade_10db": (nxt["intensity"] < FADE_FRACTION).double().mean().item(),
         "train/mean_reward": nxt["reward"].double().mean().item(),
         "train/noise_scale": _noise_scale(noise),
         "time/frames_per_s": batch.numel() / max(env_seconds + update_seconds, 1e-9),
@@ -177,8 +185,9 @@ def final_evaluation(cfg: DictConfig, actor) -> dict[str, float]:
     references = {**FINAL_POLICIES, (controller := controller_for(config.observation_extras)): controller}
     # The references point in absolute tilts: a residual action's range need not reach their pointing.
     # Same seed, same seas: the two rollouts share the upper bound.
-    results = compare_policies(config.replace(action_mode="absolute"), references, scenario)
-    results.update(compare_policies(config, {"agent": actor}, scenario))
+    link = make_link(cfg, config)
+    results = compare_policies(config.replace(action_mode="absolute"), references, scenario, link=link)
+    results.update(compare_policies(config, {"agent": actor}, scenario, link=link))
     keep = (*METRICS, "mean_gain_lo", "mean_gain_hi")
     return {f"{label}/{key}": values[key] for label, values in results.items() for key in keep}
 
