@@ -102,12 +102,8 @@ class WaterAirEnv(EnvBase):
             self._sensor_generator,
         )
         self.constants = StepConstants.of(config, self.sensor, self.reward_fn)
-        self.stepper = Stepper(
-            self.constants,
-            config.solver,
-            config.compile_kernel,
-            montecarlo=(config.montecarlo_rays, config.montecarlo_facets, self._montecarlo_generator),
-        )
+        montecarlo = (config.montecarlo_rays, config.montecarlo_facets, self._montecarlo_generator)
+        self.stepper = Stepper(self.constants, config.solver, config.compile_kernel, montecarlo)
         columns = kernel.observation_columns(config)
         self._columns = None if columns is None else torch.tensor(columns, device=self.device)
         self._allocate_state()
@@ -356,19 +352,8 @@ class WaterAirEnv(EnvBase):
         upright = torch.zeros(rows.numel(), 2, device=self.device, dtype=dtype)
         tilts = {"tx_tilt": upright, "rx_tilt": upright}
         noise = self.sensor.draw(rows.numel(), dtype, self.device)
-        light = None
-        if config.channel == "full":
-            rows_state = {
-                "flat_point": flat,
-                "tx_position": tx,
-                "rx_position": rx,
-                "lattice_basis": basis,
-                "blur": blur,
-            }
-            rows_state.update({key: getattr(self.surface, key)[rows] for key in SURFACE_KEYS})
-            light = kernel.full_light(self.constants, rows_state, path, zero)
-        elif config.channel == "montecarlo":
-            light = self.stepper.montecarlo_light(self.surface[rows], tx, rx, zero, flat)
+        ends = {"flat_point": flat, "tx_position": tx, "rx_position": rx, "lattice_basis": basis, "blur": blur}
+        light = self.stepper.reset_light(self.surface[rows], ends, path, zero)
         measurement, packet, stored, _, feature = kernel.record(
             self.constants, tilts, path, reference, flat, noise, light
         )

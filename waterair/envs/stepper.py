@@ -15,7 +15,7 @@ import functools
 import torch
 
 from waterair.envs import kernel
-from waterair.envs.kernel import StepConstants
+from waterair.envs.kernel import SURFACE_KEYS, StepConstants
 from waterair.physics.channel.lattice import beam_width
 from waterair.physics.montecarlo import trace
 from waterair.physics.optics import unit_vector
@@ -78,6 +78,18 @@ class Stepper:
         if not c.tracks_exactly or bool(solution[3].all()):  # the one host synchronisation of a step
             return new, outputs
         return self._finish_paths(surface, state, moved, solution, noise)
+
+    def reset_light(self, surface: WaveSurface, ends: dict, path, time: torch.Tensor):
+        """The light of freshly reset links (their ``surface`` rows, ``ends``: flat point, positions,
+        lattice), or None for ``single_path``."""
+        c = self.constants
+        if c.channel == "full":
+            state = {**ends, **{key: getattr(surface, key) for key in SURFACE_KEYS}}
+            return kernel.full_light(c, state, path, time)
+        if c.channel == "montecarlo":
+            tx, rx, flat = ends["tx_position"], ends["rx_position"], ends["flat_point"]
+            return self.montecarlo_light(surface, tx, rx, time, flat)
+        return None
 
     def montecarlo_light(self, surface: WaveSurface, tx, rx, time: torch.Tensor, flat_point: torch.Tensor):
         """The Monte Carlo tracer's hits for links ``[n]`` (eager): rays from each transmitter around
