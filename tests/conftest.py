@@ -5,7 +5,9 @@ from pathlib import Path
 import pytest
 import torch
 from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
 
+from waterair.envs.config import EnvConfig
 from waterair.physics.channel import LinkGeometry
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -41,3 +43,10 @@ def compose_config(name: str, overrides=(), **kwargs):
 def default_positions():
     """T and R of the default link (10 m deep, 10 m high, 10 % offset) in float64."""
     return LinkGeometry().positions(torch.float64)
+
+
+def preset_config(observation: str, sensor: str, batch: int, **overrides) -> EnvConfig:
+    """The env group with ``env/observation`` and ``env/sensor`` presets, as train.py composes it."""
+    cfg = compose_config("config", [f"env/observation={observation}", f"env/sensor={sensor}"])
+    values = {**OmegaConf.to_container(cfg.env, resolve=True), "num_envs": batch, "seed": 11, "max_steps": 10**6}
+    return EnvConfig.from_mapping({**values, **overrides})

@@ -9,10 +9,8 @@ observed log-intensity feature shows as up to ~1e-4 absolute.
 
 import pytest
 import torch
-from omegaconf import OmegaConf
 
-from tests.conftest import compose_config
-from waterair.envs.config import EnvConfig
+from tests.conftest import preset_config
 from waterair.envs.env import WaterAirEnv
 from waterair.physics.paths import FixedNewtonOptions, solve_path
 from waterair.physics.sea import SeaState
@@ -20,13 +18,6 @@ from waterair.physics.surface import WaveSurface
 
 STEPS = 200
 COMPARED = ("observation", "gain", "gain_upper_bound", "intensity", "reward", "path_valid")
-
-
-def preset_config(observation: str, sensor: str, batch: int, **overrides) -> EnvConfig:
-    """The env group with ``env/observation`` and ``env/sensor`` presets, as train.py composes it."""
-    cfg = compose_config("config", [f"env/observation={observation}", f"env/sensor={sensor}"])
-    values = {**OmegaConf.to_container(cfg.env, resolve=True), "num_envs": batch, "seed": 11, "max_steps": 10**6}
-    return EnvConfig.from_mapping({**values, **overrides})
 
 
 def rollout(env: WaterAirEnv, actions: torch.Tensor) -> dict[str, torch.Tensor]:

@@ -4,6 +4,7 @@ import pytest
 import torch
 from torchrl.envs.utils import check_env_specs
 
+from tests.conftest import preset_config
 from waterair.core.devices import resolve_device
 from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
@@ -227,13 +228,13 @@ def test_unknown_config_key_is_an_error():
 def test_a_compiled_and_an_eager_env_coexist_with_matching_gain_traces():
     """The compiled kernel belongs to its env: an eager env built after it stays eager and agrees with it."""
     counters = torch._dynamo.utils.counters["stats"]
-    # The configuration of tests/test_compiled_step.py's paper preset, so that a whole test run
-    # compiles this graph once.
-    config = {"num_envs": 8, "seed": 0, "max_steps": 10**6}
-    compiled = WaterAirEnv(**config, compile_kernel=True)
+    # The configuration of tests/test_compiled_step.py's paper preset at B = 64, so that a whole
+    # test run compiles this graph once.
+    config = preset_config("paper", "realistic", 64)
+    compiled = WaterAirEnv(config.replace(compile_kernel=True))
     traced_before = counters["calls_captured"]
-    eager = WaterAirEnv(**config)
-    actions = 0.3 * torch.randn(40, 8, 4, generator=torch.Generator().manual_seed(2))
+    eager = WaterAirEnv(config.replace(compile_kernel=False))
+    actions = 0.3 * torch.randn(40, 64, 4, generator=torch.Generator().manual_seed(2))
     traces = {}
     for name, env in (("compiled", compiled), ("eager", eager)):
         env.set_seed(7)
@@ -246,7 +247,8 @@ def test_a_compiled_and_an_eager_env_coexist_with_matching_gain_traces():
             traced_before = counters["calls_captured"]
     assert counters["calls_captured"] == traced_before  # the eager env's 40 steps traced nothing
     assert traces["compiled"].abs().max() > 0
-    torch.testing.assert_close(traces["compiled"], traces["eager"], rtol=1e-4, atol=1e-9)
+    # as tests/test_compiled_step.py allows: rounding can move a solve across its stopping threshold
+    torch.testing.assert_close(traces["compiled"], traces["eager"], rtol=1e-4, atol=1e-5)
 
 
 def test_observation_layout_names_every_part_in_order():

@@ -20,7 +20,7 @@ def test_check_env_specs_for_each_channel(channel, spectrum):
     check_env_specs(env)
 
 
-@settings(max_examples=12, deadline=None)
+@settings(max_examples=8, deadline=None)
 @given(
     channel=st.sampled_from(["single_path", "full", "montecarlo"]),
     spectrum=st.sampled_from(["jonswap", "elfouhaily"]),

@@ -105,7 +105,8 @@ def test_intensity_feature_round_trips():
 @pytest.mark.parametrize("num_envs", [1, 16])
 def test_every_observation_preset_passes_the_spec_check(preset, num_envs):
     keys = OmegaConf.to_container(compose_config("config", [f"env/observation={preset}"]).env, resolve=True)
-    config = EnvConfig.from_mapping({**keys, "num_envs": num_envs, "n_freq": 16, "n_dir": 8})
+    # eager: the specs do not depend on compiling (tests/test_compiled_step.py compares the two)
+    config = EnvConfig.from_mapping({**keys, "num_envs": num_envs, "n_freq": 16, "n_dir": 8, "compile_kernel": False})
     env = WaterAirEnv(config)
     check_env_specs(env)
     sizes = {"paper": 8, "intensity": 8 + 4 + 16, "quadrant": 8 + 2 + 1 + 2}

@@ -66,54 +66,59 @@ def evaluation_figures(result, out: Path) -> list[Path]:
 
 def gain_vs_time(result, path: Path) -> Path:
     """S1: G(t) of every policy on one sea realisation, and the mean over all realisations."""
-    scenario = _scenario(result, "S1")
     traces = result.traces["S1"]
-    time = [result.dt * (k + 1) for k in range(scenario.steps)]
-    spacing = max(1, scenario.steps // MARKS_PER_TRACE)
-    fig, axes = plt.subplots(2, 1, figsize=(9, 7.5), sharex=True)
-    for ax, title, reduce in (
-        (axes[0], "one sea realisation (the first)", lambda g: g[0, 0]),
-        (axes[1], f"mean over {scenario.realisations} realisations", lambda g: g[:, 0].double().mean(0)),
-    ):
-        for index, policy in enumerate(result.policies):
-            colour, marker, style, width = _style(result, policy)
-            ax.plot(time, reduce(traces[policy["label"]]["gain"]), color=colour, linestyle=style, linewidth=width,
-                    marker=marker, markersize=5, markevery=(index * spacing // len(result.policies), spacing),
-                    label=policy["label"])  # fmt: skip
+
+    def finish(ax) -> None:
         ax.set_ylabel("channel gain G (m⁻²)")
-        ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3)
-    axes[1].set_xlabel("time (s)")
-    fig.suptitle(scenario.title)
-    return _save_with_legend(fig, axes[0], path)
+
+    gains = {policy["label"]: traces[policy["label"]]["gain"][:, 0] for policy in result.policies}
+    return _over_time(result, path, gains, None, finish, _scenario(result, "S1").title)
 
 
 def ber_vs_time(result, path: Path) -> Path:
     """S1: the link's BER(t) of every policy on one sea realisation, and the mean over all realisations."""
-    scenario = _scenario(result, "S1")
     traces = result.traces["S1"]
-    time = [result.dt * (k + 1) for k in range(scenario.steps)]
-    spacing = max(1, scenario.steps // MARKS_PER_TRACE)
-    fig, axes = plt.subplots(2, 1, figsize=(9, 7.5), sharex=True)
-    for ax, title, reduce in (
-        (axes[0], "one sea realisation (the first)", lambda b: b[0]),
-        (axes[1], f"mean over {scenario.realisations} realisations", lambda b: b.mean(0)),
-    ):
-        for index, policy in enumerate(result.policies):
-            ber = link_performance(traces[policy["label"]]["gain"][:, 0].double(), result.link).ber
-            colour, marker, style, width = _style(result, policy)
-            ax.plot(time, reduce(ber).clamp(min=BER_FLOOR), color=colour, linestyle=style, linewidth=width,
-                    marker=marker, markersize=5, markevery=(index * spacing // len(result.policies), spacing),
-                    label=policy["label"])  # fmt: skip
+
+    def finish(ax) -> None:
         ax.axhline(result.link.fec_limit, color="crimson", linewidth=1.0, label="FEC limit")
         ax.set_yscale("log")
         ax.set_ylim(BER_FLOOR / 3, 1.0)
         ax.set_ylabel("bit error rate")
-        ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3, which="both")
-    axes[1].set_xlabel("time (s)")
+
+    bers = {
+        policy["label"]: link_performance(traces[policy["label"]]["gain"][:, 0].double(), result.link).ber
+        for policy in result.policies
+    }
     link = f"{result.link.bit_rate / 1e6:g} Mbit/s OOK, {result.link.power_w * 1e3:g} mW"
-    fig.suptitle(f"{scenario.title}\n{link}: outage above the FEC limit; a BER below {BER_FLOOR:g} drawn at it")
+    drawn = f"outage above the FEC limit; a BER below {BER_FLOOR:g} drawn at it"
+    title = f"{_scenario(result, 'S1').title}\n{link}: {drawn}"
+    return _over_time(result, path, bers, BER_FLOOR, finish, title)
+
+
+def _over_time(result, path: Path, values: dict, floor: float | None, finish, title: str) -> Path:
+    """S1 traces ``values[label]`` ``[R, T]``: the first realisation above, the mean below (each
+    clamped at ``floor`` when given); ``finish(ax)`` labels each axis."""
+    scenario = _scenario(result, "S1")
+    time = [result.dt * (k + 1) for k in range(scenario.steps)]
+    spacing = max(1, scenario.steps // MARKS_PER_TRACE)
+    fig, axes = plt.subplots(2, 1, figsize=(9, 7.5), sharex=True)
+    for ax, subtitle, reduce in (
+        (axes[0], "one sea realisation (the first)", lambda v: v[0]),
+        (axes[1], f"mean over {scenario.realisations} realisations", lambda v: v.double().mean(0)),
+    ):
+        for index, policy in enumerate(result.policies):
+            colour, marker, style, width = _style(result, policy)
+            trace = reduce(values[policy["label"]])
+            trace = trace if floor is None else trace.clamp(min=floor)
+            ax.plot(time, trace, color=colour, linestyle=style, linewidth=width,
+                    marker=marker, markersize=5, markevery=(index * spacing // len(result.policies), spacing),
+                    label=policy["label"])  # fmt: skip
+        finish(ax)
+        ax.set_title(subtitle, fontsize=10)
+    axes[1].set_xlabel("time (s)")
+    fig.suptitle(title)
     return _save_with_legend(fig, axes[0], path)
 
 

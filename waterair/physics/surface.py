@@ -127,21 +127,16 @@ class WaveSurface(TensorClass):
         if wind is not None:
             wind = wind.to(device=draw_device, dtype=torch.float64).expand(batch)
         n_dir = sea.n_dir
-        if sea.spectrum == "jonswap":
-            n_bins = sea.n_freq
-            edges = sea.frequency_bins(torch.float64, draw_device, wind).expand(batch, n_bins + 1)
-            width = edges[:, 1:] - edges[:, :-1]
-            jitter = torch.rand(batch, n_bins, generator=generator, dtype=torch.float64, device=draw_device)
-            omega = edges[:, :-1] + jitter * width
-            amplitude = sea.amplitudes(omega, width, wind)
-            wavenumber = omega**2 / GRAVITY
+        jonswap = sea.spectrum == "jonswap"  # bins in frequency (the paper's) or in wavenumber
+        n_bins, bins = (sea.n_freq, sea.frequency_bins) if jonswap else (sea.n_wavenumbers, sea.wavenumber_bins)
+        edges = bins(torch.float64, draw_device, wind).expand(batch, n_bins + 1)
+        width = edges[:, 1:] - edges[:, :-1]
+        jitter = torch.rand(batch, n_bins, generator=generator, dtype=torch.float64, device=draw_device)
+        drawn = edges[:, :-1] + jitter * width
+        if jonswap:
+            omega, amplitude, wavenumber = drawn, sea.amplitudes(drawn, width, wind), drawn**2 / GRAVITY
         else:
-            n_bins = sea.n_wavenumbers
-            edges = sea.wavenumber_bins(torch.float64, draw_device, wind).expand(batch, n_bins + 1)
-            width = edges[:, 1:] - edges[:, :-1]
-            jitter = torch.rand(batch, n_bins, generator=generator, dtype=torch.float64, device=draw_device)
-            wavenumber = edges[:, :-1] + jitter * width
-            amplitude = sea.wavenumber_amplitudes(wavenumber, width, wind)
+            amplitude, wavenumber = sea.wavenumber_amplitudes(drawn, width, wind), drawn
             omega = angular_frequency(wavenumber)
         theta, _ = sea.directions(torch.float64, draw_device)
         if wind_direction_deg is None:
