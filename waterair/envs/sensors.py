@@ -17,7 +17,7 @@ import math
 
 import torch
 
-from waterair.physics.optics import unit_vector
+from waterair.physics.optics import transverse_frame, unit_vector
 
 PACKET_PARTS = ("tx_pointing", "rx_pointing", "intensity", "spot", "spot_valid", "history")
 """Observation parts that travel in the measurement packet, and so arrive ``latency_steps`` late."""
@@ -48,19 +48,10 @@ def spot_position(arrival: torch.Tensor, boresight: torch.Tensor, half_fov: floa
     incoming = -arrival
     along = (incoming * boresight).sum(-1, keepdim=True)
     across = incoming - along * boresight
-    e1, e2 = receiver_frame(boresight)
+    e1, e2 = transverse_frame(boresight)
     return torch.stack(((across * e1).sum(-1), (across * e2).sum(-1)), -1) / (
         along.clamp(min=1e-6) * math.tan(half_fov)
     )
-
-
-def receiver_frame(boresight: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """The two unit axes (e1, e2) across the receiver boresight ``[n, 3]`` in which the spot is read."""
-    east = torch.zeros_like(boresight)
-    east[:, 0] = 1.0
-    e1 = east - (east * boresight).sum(-1, keepdim=True) * boresight
-    e1 = e1 / torch.linalg.vector_norm(e1, dim=-1, keepdim=True)
-    return e1, torch.linalg.cross(boresight, e1, dim=-1)
 
 
 def back_projection(
@@ -78,7 +69,7 @@ def back_projection(
     ``boresight`` ``[n, 3]``); the transmitter points at where that ray, back-projected from R, meets
     the mean sea level z = 0. Rows not ``seen`` ``[n]`` (no reading) take ``fallback`` (tx, rx).
     """
-    e1, e2 = receiver_frame(boresight)
+    e1, e2 = transverse_frame(boresight)
     scale = math.tan(half_fov)
     toward_surface = unit_vector(boresight + scale * (spot[:, :1] * e1 + spot[:, 1:] * e2))
     down = toward_surface[:, 2] < -1e-6

@@ -23,7 +23,7 @@ from tensordict import TensorClass
 
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples, pointed_gains
-from waterair.physics.optics import fresnel_transmittance, refract
+from waterair.physics.optics import fresnel_transmittance, refract, transverse_frame
 from waterair.physics.surface import WaveSurface, harmonic_sums
 
 INTERSECTION_ITERATIONS = 8
@@ -71,7 +71,7 @@ def trace(
     """
     batch, dtype, device = tx.shape[0], tx.dtype, tx.device
     chunk = max(16, memory // (batch * surface.num_harmonics))
-    e1, e2 = _tangent_basis(axis)
+    e1, e2 = transverse_frame(axis)
     covariance = surface.unresolved.to(torch.float64)
     xx, xy, yy = covariance.unbind(-1)
     jitter = 1e-30
@@ -177,12 +177,3 @@ def _trace_chunk(surface, tx, rx, t, optics, axis, e1, e2, reference, tangent, w
         out.reshape(batch, -1, 3),
         ray.reshape(batch, -1),
     )
-
-
-def _tangent_basis(axis: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Two unit vectors ``[B, 3]`` across the unit ``axis`` ``[B, 3]``."""
-    east = torch.zeros_like(axis)
-    east[:, 0] = 1.0
-    e1 = east - (east * axis).sum(-1, keepdim=True) * axis
-    e1 = e1 / torch.linalg.vector_norm(e1, dim=-1, keepdim=True)
-    return e1, torch.linalg.cross(axis, e1, dim=-1)

@@ -116,3 +116,13 @@ def angle_between(u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
 def unit_vector(v: torch.Tensor) -> torch.Tensor:
     """``v / |v|`` along the last dimension (``[..., 3]``)."""
     return v / torch.linalg.vector_norm(v, dim=-1, keepdim=True)
+
+
+def transverse_frame(axis: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Two unit vectors (e1, e2) ``[n, 3]`` across the unit ``axis`` ``[n, 3]``: e1 the projection of +x,
+    e2 = axis × e1 (the quadrant detector's axes, the Monte Carlo tracer's tangent plane)."""
+    east = torch.zeros_like(axis)
+    east[:, 0] = 1.0
+    e1 = east - (east * axis).sum(-1, keepdim=True) * axis
+    e1 = e1 / torch.linalg.vector_norm(e1, dim=-1, keepdim=True)
+    return e1, torch.linalg.cross(axis, e1, dim=-1)
