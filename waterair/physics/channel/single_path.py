@@ -55,7 +55,7 @@ def channel_gain(path: PathSolution, tx_dir: torch.Tensor, rx_dir: torch.Tensor,
     g_d = departure_gain(alpha_d, optics.divergence, optics.wavelength)
     g_a = arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index)
     g_p, g_ref = _path_terms(path, optics)
-    gain = g_d * g_p * g_ref * g_a
+    gain = g_p * g_ref * g_d * g_a  # the order of eq. (4.7): the path's weight, then the pointing's gains
     return ChannelGain(
         gain=gain,
         departure=g_d,

@@ -1,0 +1,100 @@
+"""Every channel model on both seas gives, for the same seeds, exactly the numbers it gave before the
+channel models became objects in :mod:`waterair.physics.channel` (float64, eager).
+
+``tests/data/channel_reference.pt`` was written by :func:`record` on the tree before that change
+(``python tests/test_channel_reference.py``); the test runs the same rollouts on today's tree and
+asks for equality, bit for bit, of every output the step reports: gains, bounds, intensities,
+observations (the quadrant spot included), rewards and the residual base controller's tilts.
+"""
+
+from pathlib import Path
+
+import pytest
+import torch
+
+from waterair.envs.env import WaterAirEnv
+
+REFERENCE = Path(__file__).parent / "data" / "channel_reference.pt"
+CHANNELS = ("single_path", "full", "montecarlo")
+SEAS = {
+    "paper": {"spectrum": "jonswap", "n_freq": 12, "n_dir": 6},
+    "ocean": {"spectrum": "elfouhaily", "n_wavenumbers": 12, "n_dir": 6},
+}
+INTERFACES = {
+    # the paper's interface: absolute pointing, an ideal sensor that reads the spot even without light
+    "absolute_ideal": {"observation_extras": ("spot", "spot_valid", "history"), "wind": 12.0, "offset_ratio": 0.1},
+    # corrections on the quadrant back-projection, through a late and noisy sensor, over many seas
+    "residual_realistic": {
+        "action_mode": "residual",
+        "residual_base": "aoa_tracker",
+        "residual_deg": 5.0,
+        "observation_extras": ("spot", "spot_valid", "geometry"),
+        "latency_steps": 1,
+        "intensity_noise": 0.05,
+        "intensity_noise_floor": 0.001,
+        "intensity_saturation": 4.0,
+        "spot_noise_rad": 0.001,
+        "spot_threshold": 0.01,
+        "wind_range": (4.0, 20.0),
+        "offset_range": (0.0, 0.5),
+        "offset_azimuth_range": (0.0, 360.0),
+    },
+}
+KEYS = ("observation", "gain", "gain_upper_bound", "intensity", "path_valid", "alpha_d", "alpha_a",
+        "departure", "arrival", "tilt", "base_tilt")  # fmt: skip
+STEPS = 6
+
+
+def rollout(channel: str, sea: str, interface: str) -> dict[str, torch.Tensor]:
+    """The reset and ``STEPS`` steps of 4 links under seeded random actions: each key stacked ``[STEPS + 1, 4, ...]``."""
+    env = WaterAirEnv(
+        num_envs=4,
+        seed=7,
+        dtype="float64",
+        channel=channel,
+        montecarlo_rays=2000,
+        montecarlo_facets=8,
+        **SEAS[sea],
+        **INTERFACES[interface],
+    )
+    # small actions: near straight facing (absolute) or near the base controller (residual), where light arrives
+    actions = 0.3 * torch.rand(STEPS, 4, 4, generator=torch.Generator().manual_seed(3), dtype=torch.float64) - 0.15
+    td = env.reset()
+    frames, rewards = [td], []
+    for action in actions:
+        step = env.step(td.set("action", action))
+        td = step["next"]
+        frames.append(td)
+        rewards.append(td["reward"])
+    trace = {key: torch.stack([frame[key] for frame in frames]) for key in KEYS}
+    trace["reward"] = torch.stack(rewards)
+    trace["reference_gain"] = env.reference_gain.clone()
+    return trace
+
+
+def cases():
+    return [(channel, sea, interface) for channel in CHANNELS for sea in SEAS for interface in INTERFACES]
+
+
+def record(path: Path = REFERENCE) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    torch.save({"/".join(case): rollout(*case) for case in cases()}, path)
+
+
+@pytest.fixture(scope="module")
+def reference():
+    return torch.load(REFERENCE, weights_only=True)
+
+
+@pytest.mark.parametrize(("channel", "sea", "interface"), cases())
+def test_every_channel_gives_what_it_gave_before_bit_for_bit(reference, channel, sea, interface):
+    expected = reference[f"{channel}/{sea}/{interface}"]
+    got = rollout(channel, sea, interface)
+    assert set(got) == set(expected)
+    assert expected["gain"].abs().max() > 0  # light reached the receivers: the comparison is not of zeros
+    for key, value in expected.items():
+        assert torch.equal(got[key], value), (key, (got[key].double() - value.double()).abs().max())
+
+
+if __name__ == "__main__":
+    record()
