@@ -46,7 +46,7 @@ STEPS = 6
 
 
 def rollout(channel: str, sea: str, interface: str) -> dict[str, torch.Tensor]:
-    """The reset and ``STEPS`` steps of 4 links under seeded random actions: each key stacked ``[STEPS + 1, 4, ...]``."""
+    """The reset and ``STEPS`` steps of 4 links under seeded random actions (each key ``[STEPS + 1, 4, ...]``)."""
     env = WaterAirEnv(
         num_envs=4,
         seed=7,

@@ -18,9 +18,8 @@ import torch
 
 from waterair.physics import LinkGeometry, SeaState, Transceiver, WaveSurface, flat_sea_point, solve_path
 from waterair.physics.channel import lattice_shape, received_gain, two_scale_light
-from waterair.physics.channel.lattice import beam_width
 from waterair.physics.montecarlo import standard_error, trace
-from waterair.physics.optics import unit_vector
+from waterair.physics.optics import beam_divergence, unit_vector
 
 DT = 0.05
 """Seconds between steps (the environment's dt)."""
@@ -59,9 +58,10 @@ def bench_montecarlo(
             index = light.weight.argmax(-1, keepdim=True).unsqueeze(-1).expand(-1, 1, 3)
             brightest = light.departure.gather(1, index)[:, 0], -light.arrival.gather(1, index)[:, 0]
             clock = time.perf_counter()
+            width = PROPOSAL_BEAMS * beam_divergence(optics.divergence, optics.wavelength)
             result = trace(
                 surface, tx, rx, t, optics, axis=snell[0], reference=unit_vector(rx - flat),
-                width=PROPOSAL_BEAMS * beam_width(optics), rays=rays, facets=facets, generator=generator,
+                width=width, rays=rays, facets=facets, generator=generator,
             )  # fmt: skip
             if device.type == "cuda":
                 torch.cuda.synchronize()

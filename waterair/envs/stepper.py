@@ -16,9 +16,8 @@ import torch
 
 from waterair.envs import kernel
 from waterair.envs.kernel import SURFACE_KEYS, StepConstants
-from waterair.physics.channel.lattice import beam_width
 from waterair.physics.montecarlo import trace
-from waterair.physics.optics import unit_vector
+from waterair.physics.optics import beam_divergence, unit_vector
 from waterair.physics.paths import FixedNewtonOptions, solve_path
 from waterair.physics.paths.fixed import finish_unconverged
 from waterair.physics.surface import WaveSurface
@@ -106,7 +105,7 @@ class Stepper:
             optics,
             axis=axis,
             reference=reference,
-            width=beam_width(optics),
+            width=beam_divergence(optics.divergence, optics.wavelength),
             rays=rays,
             facets=facets,
             generator=generator,

@@ -23,6 +23,7 @@ from tensordict import TensorClass
 
 from waterair.core.validation import check_range
 from waterair.physics.channel import Transceiver
+from waterair.physics.optics import beam_divergence
 
 ELEMENTARY_CHARGE = 1.602176634e-19
 """q (C), exact in the SI since 2019."""
@@ -204,16 +205,6 @@ def link_performance(gain: torch.Tensor, budget: LinkBudget) -> LinkPerformance:
         max_bit_rate=max_bit_rate(power, *noise, budget.fec_limit, budget.bandwidth_per_rate),
         batch_size=gain.shape,
     )
-
-
-def beam_divergence(divergence: float, wavelength: float) -> float:
-    """ω_D' = ω_D sqrt(1 + (λ/(π ω_D²))²) (rad), G_D's divergence at α_D = 0: eq. (9.1).
-
-    Args:
-        divergence: beam divergence ω_D (rad).
-        wavelength: wavelength λ (m).
-    """
-    return divergence * math.sqrt(1.0 + (wavelength / (math.pi * divergence**2)) ** 2)
 
 
 def on_axis_intensity_per_watt(divergence: float, wavelength: float) -> float:

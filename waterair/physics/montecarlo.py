@@ -23,7 +23,7 @@ from tensordict import TensorClass
 
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples, pointed_gains
-from waterair.physics.optics import fresnel_transmittance, refract, transverse_frame
+from waterair.physics.optics import refract, transverse_frame, water_transmittance
 from waterair.physics.surface import WaveSurface, harmonic_sums
 
 INTERSECTION_ITERATIONS = 8
@@ -157,7 +157,6 @@ def _trace_chunk(surface, tx, rx, t, optics, axis, e1, e2, reference, tangent, w
     incoming = direction.unsqueeze(2).expand_as(normal)
     out, transmitted = refract(incoming, -normal, optics.n_water, optics.n_air)
     theta1 = torch.acos((incoming * normal).sum(-1).clamp(-1.0, 1.0))
-    fresnel = fresnel_transmittance(theta1, optics.n_water, optics.n_air)
     # carried to the counting plane through R across `reference`
     to_plane = ((rx.unsqueeze(1) - point) * reference.unsqueeze(1)).sum(-1).unsqueeze(-1)
     slant = (out * reference[:, None, None, :]).sum(-1)
@@ -165,9 +164,11 @@ def _trace_chunk(surface, tx, rx, t, optics, axis, e1, e2, reference, tangent, w
     landing = point.unsqueeze(2) + reach.unsqueeze(-1) * out
     inside = torch.linalg.vector_norm(landing - rx[:, None, None, :], dim=-1) <= optics.aperture_diameter / 2.0
     good = transmitted & (out[..., 2] > 0) & (slant > 1e-6) & inside & (reach > 0)
-    absorption = torch.exp(-optics.attenuation_per_m * distance).unsqueeze(-1)
+    transmitted_power = water_transmittance(
+        theta1, distance.unsqueeze(-1), optics.n_water, optics.n_air, optics.attenuation_per_m
+    )
     # plane irradiance → irradiance across the ray (÷ cos), per unit on-axis intensity (÷ q)
-    weight = fresnel * absorption / proposal.unsqueeze(-1) / area / slant.clamp(min=1e-12)
+    weight = transmitted_power / proposal.unsqueeze(-1) / area / slant.clamp(min=1e-12)
     weight = torch.where(good & torch.isfinite(weight), weight, torch.zeros_like(weight))
     ray = (start + torch.arange(count, device=tx.device)).view(1, count, 1).expand(batch, count, facets)
     departure = direction.unsqueeze(2).expand(batch, count, facets, 3)

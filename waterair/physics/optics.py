@@ -70,6 +70,28 @@ def fresnel_transmittance(theta1: torch.Tensor, n1: float = N_WATER, n2: float =
     return torch.where(total_reflection, torch.zeros_like(transmittance), transmittance)
 
 
+def water_transmittance(
+    theta1: torch.Tensor, d_water: torch.Tensor, n1: float, n2: float, attenuation: float
+) -> torch.Tensor:
+    """T(θ1) e^{−c d_water}: the share of a ray's power that crosses the water and the surface (docs/model.md §4.2).
+
+    Args:
+        theta1: incidence angle on the surface (rad); d_water: the ray's length in water (m).
+        n1, n2: refractive indices of water and air; attenuation: c (1/m).
+    """
+    return fresnel_transmittance(theta1, n1, n2) * torch.exp(-attenuation * d_water)
+
+
+def beam_divergence(divergence: float, wavelength: float) -> float:
+    """ω_D' = ω_D sqrt(1 + (λ/(π ω_D²))²) (rad): G_D ≈ exp(−2 α²/ω_D'²) for small α (docs/model.md §4.1, eq. 9.1).
+
+    Args:
+        divergence: beam divergence ω_D (rad).
+        wavelength: wavelength λ (m).
+    """
+    return divergence * math.sqrt(1.0 + (wavelength / (math.pi * divergence**2)) ** 2)
+
+
 def departure_gain(alpha_d: torch.Tensor, divergence: float, wavelength: float) -> torch.Tensor:
     """Gaussian-beam departure gain G_D(α_D) (docs/model.md §4, paper eq. (2)), dimensionless, G_D(0) = 1.
 
@@ -103,8 +125,13 @@ def arrival_gain(alpha_a: torch.Tensor, half_fov: float, concentrator_index: flo
         concentrator_index: concentrator refractive index n_c (paper n2).
     """
     inside = alpha_a <= half_fov
-    gain = concentrator_index**2 / math.sin(half_fov) ** 2 * torch.cos(alpha_a)
+    gain = peak_arrival_gain(half_fov, concentrator_index) * torch.cos(alpha_a)
     return torch.where(inside, gain, torch.zeros_like(gain))
+
+
+def peak_arrival_gain(half_fov: float, concentrator_index: float = 1.0) -> float:
+    """G_A at α_A = 0: n_c² / sin² ω_A (docs/model.md §4, paper eq. (5)); ω_A in rad."""
+    return concentrator_index**2 / math.sin(half_fov) ** 2
 
 
 def angle_between(u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:

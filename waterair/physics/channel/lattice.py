@@ -26,9 +26,10 @@ import math
 
 import torch
 
+from waterair.physics.channel.facets import aperture_slope_variance, facet_normal
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
-from waterair.physics.optics import fresnel_transmittance
+from waterair.physics.optics import beam_divergence, water_transmittance
 from waterair.physics.paths import flat_sea_point
 from waterair.physics.surface import harmonic_sums
 
@@ -55,7 +56,7 @@ def lattice_shape(tx: torch.Tensor, rx: torch.Tensor, slope_covariance: torch.Te
     d1, d2 = point - tx, rx - point
     r1, r2 = torch.linalg.vector_norm(d1, dim=-1), torch.linalg.vector_norm(d2, dim=-1)
     u1, u2 = d1 / r1.unsqueeze(-1), d2 / r2.unsqueeze(-1)
-    w = optics.n_water * u1 - optics.n_air * u2
+    w = facet_normal(u1, u2, optics)
     w_z = w[:, 2]
     eye = torch.eye(2, dtype=tx.dtype, device=tx.device)
     # calm-sea Hessian of L: Σ_i (n_i / r_i)(I − u_i u_iᵀ) over the horizontal axes
@@ -63,13 +64,13 @@ def lattice_shape(tx: torch.Tensor, rx: torch.Tensor, slope_covariance: torch.Te
         :, None, None
     ] * (eye - u2[:, :2, None] * u2[:, None, :2])
     slope_map = hessian / w_z[:, None, None]
-    aperture = (optics.aperture_diameter / 4.0 * optics.n_air / r2) ** 2 * (w * u2).sum(-1).abs() / w_z.abs() ** 3
+    aperture = aperture_slope_variance(w, u2, r2, optics)
     blur = slope_covariance + torch.stack((aperture, torch.zeros_like(aperture), aperture), dim=-1)
     precision = slope_map.transpose(-1, -2) @ torch.linalg.inv(_matrix(blur)) @ slope_map + eye / LARGEST_PATCH**2
     horizontal = d1[:, :2] / torch.linalg.vector_norm(d1[:, :2], dim=-1, keepdim=True).clamp(min=1e-12)
     horizontal = torch.where(torch.isfinite(horizontal), horizontal, torch.zeros_like(horizontal))
     cos1 = u1[:, 2]
-    footprint = (r1 * beam_width(optics) / 2.0) ** 2
+    footprint = (r1 * beam_divergence(optics.divergence, optics.wavelength) / 2.0) ** 2
     along = horizontal.unsqueeze(-1) * horizontal.unsqueeze(-2)
     covariance = footprint[:, None, None] * (eye + (1.0 / cos1**2 - 1.0)[:, None, None] * along)
     values, vectors = torch.linalg.eigh(torch.linalg.inv(precision + torch.linalg.inv(covariance)))
@@ -109,7 +110,7 @@ def two_scale_light(
     d1, d2 = point - tx.unsqueeze(1), rx.unsqueeze(1) - point
     r1, r2 = torch.linalg.vector_norm(d1, dim=-1), torch.linalg.vector_norm(d2, dim=-1)
     u1, u2 = d1 / r1.unsqueeze(-1), d2 / r2.unsqueeze(-1)
-    w = optics.n_water * u1 - optics.n_air * u2
+    w = facet_normal(u1, u2, optics)
     w_z = w[..., 2].clamp(min=1e-6)
     needed = torch.stack((-w[..., 0] / w_z - slope_x, -w[..., 1] / w_z - slope_y), dim=-1)
     sxx, sxy, syy = (v.unsqueeze(-1) for v in blur.unbind(-1))
@@ -118,9 +119,7 @@ def two_scale_light(
     density = torch.exp(-0.5 * quadratic / determinant) / (2.0 * math.pi * torch.sqrt(determinant))
     facet = w / torch.linalg.vector_norm(w, dim=-1, keepdim=True)
     theta1 = torch.acos((u1 * facet).sum(-1).clamp(-1.0, 1.0))
-    transmitted = fresnel_transmittance(theta1, optics.n_water, optics.n_air) * torch.exp(
-        -optics.attenuation_per_m * r1
-    )
+    transmitted = water_transmittance(theta1, r1, optics.n_water, optics.n_air, optics.attenuation_per_m)
     normal_u1 = (u1[..., 2] - slope_x * u1[..., 0] - slope_y * u1[..., 1]).abs()  # |N·u1|, N = (−η_x, −η_y, 1)
     to_receiver = optics.n_air**2 / r2**2 * (w * u2).sum(-1).abs() / w_z**3
     area = (2.0 * span / (nodes - 1)) ** 2 * torch.linalg.det(basis).abs().unsqueeze(-1)
@@ -128,11 +127,6 @@ def two_scale_light(
     weight = area * transmitted * normal_u1 / r1**2 * density * to_receiver
     weight = torch.where(upward & torch.isfinite(weight), weight, torch.zeros_like(weight))
     return LightSamples(weight=weight, departure=u1, arrival=u2, batch_size=[batch, nodes * nodes])
-
-
-def beam_width(optics: Transceiver) -> float:
-    """ω' = ω_D sqrt(1 + (λ / (π ω_D²))²) (rad): G_D ≈ exp(−2 α² / ω'²) for small α (docs/model.md §4.1)."""
-    return optics.divergence * math.sqrt(1.0 + (optics.wavelength / (math.pi * optics.divergence**2)) ** 2)
 
 
 def _matrix(covariance: torch.Tensor) -> torch.Tensor:

@@ -21,13 +21,12 @@ bounds the power there (:func:`ray_tube_factor`). Gains here are per unit on-axi
 
 from __future__ import annotations
 
-import math
-
 import torch
 
+from waterair.physics.channel.facets import aperture_slope_variance, facet_normal
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
-from waterair.physics.optics import fresnel_transmittance
+from waterair.physics.optics import peak_arrival_gain, water_transmittance
 from waterair.physics.paths import flat_sea_point
 
 FOLD_CONSTANT = 2.705
@@ -62,9 +61,7 @@ def ray_tube_factor(
     normal = torch.cat((-slope, torch.ones_like(slope[..., :1])), dim=-1)
     cos1 = (normal * u1).sum(-1).abs() / torch.linalg.vector_norm(normal, dim=-1)
     theta1 = torch.acos(cos1.clamp(max=1.0))
-    transmitted = fresnel_transmittance(theta1, optics.n_water, optics.n_air) * torch.exp(
-        -optics.attenuation_per_m * r1
-    )
+    transmitted = water_transmittance(theta1, r1, optics.n_water, optics.n_air, optics.attenuation_per_m)
     geometry = optics.n_air**2 * (normal * u1).sum(-1).abs() * (normal * u2).sum(-1).abs() / (r1 * r2) ** 2
     return transmitted * geometry / bounded_determinant(hessian, u1, u2, r2, optics, third)
 
@@ -74,11 +71,11 @@ def bounded_determinant(hessian, u1, u2, r2, optics: Transceiver, third=None) ->
     hxx, hxy, hyy = hessian.unbind(-1)
     if third is None:
         return (hxx * hyy - hxy**2).abs()
-    w = optics.n_water * u1 - optics.n_air * u2
+    w = facet_normal(u1, u2, optics)
     w_z = w[..., 2]
     # A = H / w_z maps a step on the surface to the facet slope it needs; the aperture spreads that
-    # slope by (D/4)·|∂ζ/∂R| = (D/4)(n_a/r2) sqrt(|w·u2|/|w_z|³) (docs/model.md §4.3).
-    spread = optics.aperture_diameter / 4.0 * optics.n_air / r2 * torch.sqrt((w * u2).sum(-1).abs() / w_z.abs() ** 3)
+    # slope by (D/4)·|∂ζ/∂R| (docs/model.md §4.3).
+    spread = torch.sqrt(aperture_slope_variance(w, u2, r2, optics))
     half_trace, half_gap = 0.5 * (hxx + hyy), torch.sqrt((0.5 * (hxx - hyy)) ** 2 + hxy**2)
     eigen = torch.stack((half_trace - half_gap, half_trace + half_gap), dim=-1) / w_z.unsqueeze(-1)
     bounded = torch.sqrt(eigen**2 + FOLD_CONSTANT * spread.unsqueeze(-1) * third.abs())
@@ -108,9 +105,7 @@ def flat_sea_irradiance(tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver)
     c1, c2 = optics.n_water / r1, optics.n_air / r2
     determinant = (c1 * cos1**2 + c2 * cos2**2) * (c1 + c2)
     theta1 = torch.acos(cos1.clamp(max=1.0))
-    transmitted = fresnel_transmittance(theta1, optics.n_water, optics.n_air) * torch.exp(
-        -optics.attenuation_per_m * r1
-    )
+    transmitted = water_transmittance(theta1, r1, optics.n_water, optics.n_air, optics.attenuation_per_m)
     return transmitted * optics.n_air**2 * cos1 * cos2 / ((r1 * r2) ** 2 * determinant)
 
 
@@ -120,7 +115,7 @@ def calm_sea_reference(tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver) 
     The exact calm-sea irradiance (:func:`flat_sea_irradiance`) times the peak arrival gain
     n_c² / sin² ω_A; the intensity I = G / G_0 is 1 for an aligned link on a calm sea.
     """
-    return flat_sea_irradiance(tx, rx, optics) * optics.concentrator_index**2 / math.sin(optics.half_fov) ** 2
+    return flat_sea_irradiance(tx, rx, optics) * peak_arrival_gain(optics.half_fov, optics.concentrator_index)
 
 
 def ray_tube_light(

@@ -7,8 +7,6 @@
 
 from __future__ import annotations
 
-import math
-
 import torch
 from tensordict import TensorClass
 
@@ -19,6 +17,7 @@ from waterair.physics.optics import (
     departure_gain,
     fresnel_transmittance,
     path_gain,
+    peak_arrival_gain,
 )
 from waterair.physics.paths import PathSolution, flat_sea_point
 
@@ -71,7 +70,7 @@ def channel_gain(path: PathSolution, tx_dir: torch.Tensor, rx_dir: torch.Tensor,
 def gain_upper_bound(path: PathSolution, optics: Transceiver) -> torch.Tensor:
     """G_UB = G_p G_ref n_c² / sin² ω_A: both ends pointed along the path (docs/model.md §4), ``[B]`` (1/m²)."""
     g_p, g_ref = _path_terms(path, optics)
-    return g_p * g_ref * _peak_arrival_gain(optics)
+    return g_p * g_ref * peak_arrival_gain(optics.half_fov, optics.concentrator_index)
 
 
 def calm_sea_gain(link: LinkGeometry, optics: Transceiver, dtype: torch.dtype = torch.float64) -> float:
@@ -88,12 +87,7 @@ def calm_sea_gains(tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver) -> t
     theta1 = torch.acos(((point - tx)[:, 2] / d_water).clamp(-1.0, 1.0))
     g_p = path_gain(d_water, d_air, optics.attenuation_per_m)
     g_ref = fresnel_transmittance(theta1, optics.n_water, optics.n_air)
-    return g_p * g_ref * _peak_arrival_gain(optics)
-
-
-def _peak_arrival_gain(optics: Transceiver) -> float:
-    """G_A at α_A = 0: n_c² / sin² ω_A (docs/model.md §4)."""
-    return optics.concentrator_index**2 / math.sin(optics.half_fov) ** 2
+    return g_p * g_ref * peak_arrival_gain(optics.half_fov, optics.concentrator_index)
 
 
 def _path_terms(path: PathSolution, optics: Transceiver) -> tuple[torch.Tensor, torch.Tensor]:
