@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
-from waterair.physics.channel import LinkGeometry, Transceiver
+from waterair.physics.channel import ChannelModel, LinkGeometry, Transceiver, channel_model
 from waterair.physics.sea import SeaState
 
 ACTION_MODES = ("absolute", "delta", "residual")
@@ -41,8 +41,6 @@ SENSOR_KEYS = (
 """The sensing keys (presets: env/sensor=ideal|ideal_late|realistic)."""
 DTYPES = ("float32", "float64")
 ENV_SOLVERS = ("newton", "centroid")
-CHANNELS = ("single_path", "full", "montecarlo")
-"""Channel models of ``env.channel`` (:mod:`waterair.envs.channels`)."""
 """Path solvers of the step: fixed-iteration Newton in the step's graph, or the paper's centroid method."""
 
 
@@ -162,16 +160,11 @@ class EnvConfig:
                 f"env.replicas = {self.replicas} is not allowed; it must divide env.num_envs = {self.num_envs}"
             )
         check_choice("env.solver", self.solver, ENV_SOLVERS)
-        check_choice("env.channel", self.channel, CHANNELS)
-        check_range("env.aperture_diameter", self.aperture_diameter, 0.0, 10.0, low_open=True, unit="m")
-        check_int("env.lattice_nodes", self.lattice_nodes, 3, 31)
-        if self.lattice_nodes % 2 == 0:
-            raise ValueError(
-                f"env.lattice_nodes = {self.lattice_nodes} is not allowed; it must be odd (a node on the centre)"
-            )
-        check_range("env.lattice_span", self.lattice_span, 1.0, 8.0)
-        check_int("env.montecarlo_rays", self.montecarlo_rays, 1, 10**9)
-        check_int("env.montecarlo_facets", self.montecarlo_facets, 1, 10**5)
+        for build in (self.sea, self.link, self.transceiver, self.channel_model):
+            try:
+                build()
+            except ValueError as error:
+                raise ValueError(f"env.{error}") from None
         if self.channel != "single_path" and self.solver == "centroid":
             raise ValueError(
                 f"env.solver = 'centroid' only works with env.channel = 'single_path' (got {self.channel!r}); "
@@ -191,11 +184,6 @@ class EnvConfig:
             (first, count), *others = lengths.items()
             given = f"{first} has {count} entries and " + ", ".join(f"{key} {n}" for key, n in others)
             raise ValueError(f"{given}; given together they must have one entry per scenario point")
-        for build in (self.sea, self.link, self.transceiver):
-            try:
-                build()
-            except ValueError as error:
-                raise ValueError(f"env.{error}") from None
 
     def _check_values(self, name: str, low: float, high: float, unit: str) -> None:
         key, values = f"{name}_values", getattr(self, f"{name}_values")
@@ -254,6 +242,18 @@ class EnvConfig:
             concentrator_index=self.concentrator_index,
             water=self.water,
             aperture_diameter=self.aperture_diameter,
+        )
+
+    def channel_model(self) -> ChannelModel:
+        """The channel model ``channel`` names, for this sea and these optics (docs/environment.md, "Channel")."""
+        return channel_model(
+            self.channel,
+            self.transceiver(),
+            self.sea().two_scale,
+            lattice_nodes=self.lattice_nodes,
+            lattice_span=self.lattice_span,
+            montecarlo_rays=self.montecarlo_rays,
+            montecarlo_facets=self.montecarlo_facets,
         )
 
     @property

@@ -16,16 +16,17 @@ from waterair.envs.config import EnvConfig
 from waterair.envs.frames import FrameStack
 from waterair.envs.kernel import MEASUREMENT_KEYS, SURFACE_KEYS, StepConstants
 from waterair.envs.rewards import Reward
-from waterair.envs.sensors import Sensor, packet_sizes
+from waterair.envs.sensors import Sensor
 from waterair.envs.stepper import Stepper
-from waterair.physics.channel import calm_sea_gains, calm_sea_reference, lattice_shape
+from waterair.physics.channel import LinkEnds
 from waterair.physics.paths import flat_sea_point, solve_path
 from waterair.physics.surface import WaveSurface
 
 SENSOR_SEED_MASK = 0x5E5E5E5E
 """The sensor-noise generator is seeded with ``seed XOR`` this, independent of the seas'."""
-MONTECARLO_SEED_MASK = 0x3C3C3C3C
-"""The Monte Carlo tracer's generator (``env.channel=montecarlo``) is seeded with ``seed XOR`` this."""
+CHANNEL_SEED_MASK = 0x3C3C3C3C
+"""The generator of a channel that draws (the Monte Carlo tracer, ``env.channel=montecarlo``) is seeded
+with ``seed XOR`` this."""
 
 
 class WaterAirEnv(EnvBase):
@@ -83,27 +84,18 @@ class WaterAirEnv(EnvBase):
         super().__init__(device=resolve_device(config.device), batch_size=torch.Size([config.num_envs]))
         self.config = config
         self.reward_fn = reward or Reward()
-        self.sea, self.link, self.optics = config.sea(), config.link(), config.transceiver()
+        self.sea, self.link, self.channel = config.sea(), config.link(), config.channel_model()
+        self.optics = self.channel.optics
         self.float_dtype = getattr(torch, config.dtype)
         self.observation_size = config.observation_size
         self._make_specs()
         self._generator = torch.Generator()
         self._sensor_generator = torch.Generator()
-        self._montecarlo_generator = torch.Generator()
+        self._channel_generator = torch.Generator()
         self._set_seed(config.seed)
-        self.sensor = Sensor(
-            config.latency_steps,
-            config.intensity_noise,
-            config.intensity_noise_floor,
-            config.intensity_saturation,
-            config.spot_noise_rad,
-            config.spot_threshold,
-            self.optics.half_fov,
-            self._sensor_generator,
-        )
-        self.constants = StepConstants.of(config, self.sensor, self.reward_fn)
-        montecarlo = (config.montecarlo_rays, config.montecarlo_facets, self._montecarlo_generator)
-        self.stepper = Stepper(self.constants, config.solver, config.compile_kernel, montecarlo)
+        self.sensor = Sensor(**config.sensing, half_fov=self.optics.half_fov, generator=self._sensor_generator)
+        self.constants = StepConstants.of(config, self.sensor, self.reward_fn, self.channel)
+        self.stepper = Stepper(self.constants, config.solver, config.compile_kernel, self._channel_generator)
         columns = kernel.observation_columns(config)
         self._columns = None if columns is None else torch.tensor(columns, device=self.device)
         self._allocate_state()
@@ -160,11 +152,11 @@ class WaterAirEnv(EnvBase):
         if seed is None:
             self._generator.seed()
             self._sensor_generator.seed()
-            self._montecarlo_generator.seed()
+            self._channel_generator.seed()
         else:
             self._generator.manual_seed(int(seed))
             self._sensor_generator.manual_seed(int(seed) ^ SENSOR_SEED_MASK)
-            self._montecarlo_generator.manual_seed(int(seed) ^ MONTECARLO_SEED_MASK)
+            self._channel_generator.manual_seed(int(seed) ^ CHANNEL_SEED_MASK)
 
     @property
     def rng(self) -> torch.Generator:
@@ -241,26 +233,12 @@ class WaterAirEnv(EnvBase):
         def zeros(*shape, kind=dtype):
             return torch.zeros(batch, *shape, dtype=kind, device=device)
 
-        history = self.config.history_length
         self.surface = WaveSurface.sample(self.sea, batch, generator=self._generator, device=device, dtype=dtype)
+        tx, rx = (v.to(device, dtype).expand(batch, 3) for v in self.link.positions(torch.float64))
+        prepared = self.channel.prepare(tx, rx, self.surface.unresolved)
+        shapes = kernel.state_shapes(self.config.history_length, self.config.latency_steps, prepared)
         self.state: dict[str, torch.Tensor] = {
-            "time": zeros(),
-            "steps": zeros(kind=torch.int64),
-            "tx_tilt": zeros(2),
-            "rx_tilt": zeros(2),
-            "tx_position": zeros(3),
-            "rx_position": zeros(3),
-            "point": zeros(3),
-            "previous_point": zeros(3),
-            "flat_point": zeros(3),
-            "reference_gain": zeros(),
-            "history": zeros(history),  # previous measured intensity features
-            "last_feature": zeros(),  # the newest measured intensity feature
-            "action_history": zeros(history, 4),
-            # the packets in flight, newest first; the controller sees the last slot
-            "packets": zeros(self.config.latency_steps + 1, sum(packet_sizes(history))),
-            "lattice_basis": zeros(2, 2),  # the full channel's surface lattice (m) and blur (slope²)
-            "blur": zeros(3),
+            key: zeros(*shape, kind=torch.int64 if integer else dtype) for key, (shape, integer) in shapes.items()
         }
         self._base_tilt = zeros(4)  # the residual base controller's tilts for the next action
         self.measurement = {
@@ -332,10 +310,8 @@ class WaterAirEnv(EnvBase):
         azimuth = self._per_link(config.offset_azimuth_range, config.offset_azimuth_values, None, distinct)
         azimuth = None if azimuth is None else azimuth[copy.cpu()]
         tx, rx = (v.to(self.device, dtype) for v in self.link.positions_for(offset, azimuth))
-        calm = calm_sea_gains if config.channel == "single_path" else calm_sea_reference
-        reference = calm(tx.double(), rx.double(), self.optics).to(dtype)
-        basis, blur = lattice_shape(tx.double(), rx.double(), self.surface.unresolved[rows].double(), self.optics)
-        basis, blur = basis.to(dtype), blur.to(dtype)
+        reference = self.channel.reference_gain(tx.double(), rx.double()).to(dtype)
+        prepared = self.channel.prepare(tx, rx, self.surface.unresolved[rows])
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)
         zero = torch.zeros(rows.numel(), device=self.device, dtype=dtype)
         path = solve_path(
@@ -352,10 +328,9 @@ class WaterAirEnv(EnvBase):
         upright = torch.zeros(rows.numel(), 2, device=self.device, dtype=dtype)
         tilts = {"tx_tilt": upright, "rx_tilt": upright}
         noise = self.sensor.draw(rows.numel(), dtype, self.device)
-        ends = {"flat_point": flat, "tx_position": tx, "rx_position": rx, "lattice_basis": basis, "blur": blur}
-        light = self.stepper.reset_light(self.surface[rows], ends, path, zero)
+        light = self.stepper.reset_light(self.surface[rows], LinkEnds(tx, rx, flat), prepared, path, zero)
         measurement, packet, stored, _, feature = kernel.record(
-            self.constants, tilts, path, reference, flat, noise, light
+            self.constants, tilts, path, light, reference, flat, noise
         )
         no_history = torch.zeros(rows.numel(), config.history_length, device=self.device, dtype=dtype)
         packed = kernel.pack(packet, no_history)  # a reset has no older packet: it fills every slot
@@ -374,8 +349,7 @@ class WaterAirEnv(EnvBase):
             "last_feature": feature,
             "action_history": 0.0,
             "packets": packed.unsqueeze(1),
-            "lattice_basis": basis,
-            "blur": blur,
+            **prepared,
         }
         for key, value in updates.items():
             state[key][rows] = value

@@ -8,17 +8,20 @@ host synchronisation. :class:`waterair.envs.env.WaterAirEnv` calls it compiled o
 function, so both give the same numbers to float rounding), then hands the rare links whose path
 has not converged to the adaptive solver and redoes :func:`conclude` for them.
 
-The state is a plain ``dict`` of tensors (:data:`STATE_KEYS`); nothing here keeps state.
+The channel is a :class:`~waterair.physics.channel.ChannelModel` held by :class:`StepConstants`: the
+step asks it for the light and reads it through it; nothing here knows which model it is.
+The state is a plain ``dict`` of tensors (:func:`state_shapes`); nothing here keeps state.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import torch
 
-from waterair.envs import channels
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import (
@@ -29,36 +32,66 @@ from waterair.envs.sensors import (
     packet_sizes,
     spot_position,
 )
-from waterair.physics.channel import Transceiver, pointing
+from waterair.physics.channel import ChannelModel, LightSamples, LinkEnds, Transceiver, pointing
 from waterair.physics.optics import unit_vector
-from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path
+from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path, near_calm_point
 from waterair.physics.paths.fixed import fixed_newton_terms
+from waterair.physics.surface import Harmonics
 
-SURFACE_KEYS = ("omega", "phase", "kx", "ky", "amplitude")
-STATE_KEYS = (
-    *SURFACE_KEYS,
-    "time",
-    "steps",
-    "tx_tilt",
-    "rx_tilt",
-    "tx_position",
-    "rx_position",
-    "point",
-    "previous_point",
-    "flat_point",
-    "reference_gain",
-    "history",
-    "last_feature",
-    "action_history",
-    "packets",
-)
-"""What the step reads: the seas' components, the clock, the gimbals, the geometry, the last two
-path points (the prediction), the sensor history and the packets in flight ``[B, slots, width]``."""
-LATTICE_LEASH = 3.0
-"""How far (m) the two-scale lattice's centre may stray from the calm-sea point before it is put back
-there: the light comes from within a metre or so of it at any wind (docs/model.md §4.3)."""
+SURFACE_KEYS = Harmonics._fields
+"""The seas' resolved components in the state, in the order of :class:`~waterair.physics.surface.Harmonics`."""
 MEASUREMENT_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid", "alpha_d", "alpha_a", "departure", "arrival")
 """The true values each step reports beside the observation."""
+
+
+def state_shapes(
+    history_length: int, latency_steps: int, prepared: Mapping[str, torch.Tensor]
+) -> dict[str, tuple[tuple[int, ...], bool]]:
+    """Every state entry besides the seas' components (:data:`SURFACE_KEYS`): its per-link shape and
+    whether it is an integer. The clock, the gimbals, the geometry, the last two path points (the
+    prediction), the calm-sea point and G_0, the sensor history, the packets in flight
+    ``[slots, width]``, and the channel's per-episode constants (``prepared``, one link's worth each)."""
+    return {
+        "time": ((), False),
+        "steps": ((), True),
+        "tx_tilt": ((2,), False),
+        "rx_tilt": ((2,), False),
+        "tx_position": ((3,), False),
+        "rx_position": ((3,), False),
+        "point": ((3,), False),
+        "previous_point": ((3,), False),
+        "flat_point": ((3,), False),
+        "reference_gain": ((), False),
+        "history": ((history_length,), False),  # previous measured intensity features
+        "last_feature": ((), False),  # the newest measured intensity feature
+        "action_history": ((history_length, 4), False),
+        # the packets in flight, newest first; the controller sees the last slot
+        "packets": ((latency_steps + 1, sum(packet_sizes(history_length))), False),
+        **{key: (tuple(value.shape[1:]), False) for key, value in prepared.items()},
+    }
+
+
+class Solve(NamedTuple):
+    """A path solve's result per link: P ``[B, 3]``, slopes ``[B, 2]``, the final (x, y) ``[B, 2]``
+    (where more iterations would start), converged ``[B]`` and iterations taken ``[B]``."""
+
+    point: torch.Tensor
+    slope: torch.Tensor
+    xy: torch.Tensor
+    converged: torch.Tensor
+    iterations: torch.Tensor
+
+
+class Record(NamedTuple):
+    """What a solved path and its light give (:func:`record`): the true ``measurement`` (dict of ``[n]``
+    tensors), the sensor ``packet`` (dict of parts), the ``stored`` warm start ``[n, 3]``, whether the
+    path's own point was stored (``tracked`` ``[n]``) and the measured intensity ``feature`` ``[n]``."""
+
+    measurement: dict
+    packet: dict
+    stored: torch.Tensor
+    tracked: torch.Tensor
+    feature: torch.Tensor
 
 
 @dataclass(frozen=True)
@@ -79,16 +112,13 @@ class StepConstants:
     episode_seconds: float
     max_steps: int
     vertical_distance: float
-    channel: str
-    two_scale: bool
-    lattice_nodes: int
-    lattice_span: float
+    channel: ChannelModel
 
     @classmethod
-    def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward) -> StepConstants:
+    def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward, channel: ChannelModel) -> StepConstants:
         solver = FixedNewtonOptions(iterations=config.newton_iterations)
         return cls(
-            optics=config.transceiver(),
+            optics=channel.optics,
             sensor=sensor,
             reward=reward,
             solver=solver,
@@ -102,17 +132,8 @@ class StepConstants:
             episode_seconds=config.episode_seconds,
             max_steps=config.max_steps,
             vertical_distance=config.tx_depth + config.rx_height,
-            channel=config.channel,
-            two_scale=config.spectrum == "elfouhaily",
-            lattice_nodes=config.lattice_nodes,
-            lattice_span=config.lattice_span,
+            channel=channel,
         )
-
-    @property
-    def tracks_exactly(self) -> bool:
-        """Whether the step needs the tracked refraction point converged (it does not when the
-        two-scale lattice only centres on it, nor for the Monte Carlo tracer)."""
-        return self.channel == "single_path" or (self.channel == "full" and not self.two_scale)
 
 
 def advance(c: StepConstants, state: dict, action: torch.Tensor) -> dict:
@@ -162,10 +183,9 @@ def predicted_point(state: dict) -> torch.Tensor:
     return 2.0 * state["point"][:, :2] - state["previous_point"][:, :2]
 
 
-def solve(c: StepConstants, state: dict, time: torch.Tensor, start=None, iterations: int | None = None):
-    """Masked Newton iterations (``c.solver.iterations`` by default) from ``start`` (default: the predicted
-    point): (P ``[B, 3]``, slopes ``[B, 2]``, final (x, y) ``[B, 2]``, converged ``[B]``, iterations ``[B]``)."""
-    return fixed_newton_terms(
+def solve(c: StepConstants, state: dict, time: torch.Tensor, start=None, iterations: int | None = None) -> Solve:
+    """Masked Newton iterations (``c.solver.iterations`` by default) from ``start`` (default: the predicted point)."""
+    terms = fixed_newton_terms(
         *(state[key] for key in SURFACE_KEYS),
         predicted_point(state) if start is None else start,
         time,
@@ -178,21 +198,40 @@ def solve(c: StepConstants, state: dict, time: torch.Tensor, start=None, iterati
         c.solver.armijo,
         c.solver.max_step,
     )
+    return Solve(*terms)
 
 
-def record(c: StepConstants, tilts: dict, path: PathSolution, reference_gain, flat_point, noise, light=None):
-    """What a solved path (and, for the full channel, its ``light``) gives: the true measurement,
-    the sensor packet and the next warm start.
+def channel_light(
+    c: StepConstants, state: dict, path: PathSolution, time: torch.Tensor, generator: torch.Generator | None = None
+) -> LightSamples:
+    """The channel's light for the links of ``state`` (their seas, ends and the channel's per-episode
+    constants) through the tracked ``path`` at ``time`` ``[B]`` (s)."""
+    sea = Harmonics(*(state[key] for key in SURFACE_KEYS))
+    ends = LinkEnds(state["tx_position"], state["rx_position"], state["flat_point"])
+    prepared = {key: state[key] for key in c.channel.prepared_keys}
+    return c.channel.light(sea, path, ends, time, prepared, generator)
 
-    Returns (measurement dict, packet ``[n, width]``, stored point ``[n, 3]``, whether the path's own
-    point was stored ``[n]``, intensity feature ``[n]``). An invalid path stores the calm-sea point,
-    so that the next solve does not start from a lost one.
+
+def record(c: StepConstants, tilts: dict, path: PathSolution, light: LightSamples, reference_gain, flat_point, noise):
+    """What a solved path and its ``light`` give: the true measurement, the sensor packet and the next warm
+    start (:class:`Record`). An invalid path stores the calm-sea point, so that the next solve does not
+    start from a lost one.
     """
     tx_dir, rx_dir = pointing(tilts["tx_tilt"], up=True), pointing(tilts["rx_tilt"], up=False)
-    true, seen_arrival, lit = channels.measure(c.optics, path, light, tx_dir, rx_dir)
+    received = c.channel.receive(light, tx_dir, rx_dir)
+    true = {
+        "gain": received.gain,
+        "gain_upper_bound": received.upper_bound,
+        "path_valid": received.valid,
+        "alpha_d": received.alpha_d,
+        "alpha_a": received.alpha_a,
+        "departure": received.departure,
+        "arrival": received.arrival,
+    }
     intensity = true["gain"] / reference_gain
     measured = c.sensor.intensity(intensity, noise)
-    spot, spot_valid = c.sensor.spot(spot_position(seen_arrival, rx_dir, c.optics.half_fov), lit, measured, noise)
+    seen = spot_position(received.spot_arrival, rx_dir, c.optics.half_fov)
+    spot, spot_valid = c.sensor.spot(seen, received.lit, measured, noise)
     feature = intensity_feature(measured)
     packet = {
         "tx_pointing": tx_dir,
@@ -202,18 +241,9 @@ def record(c: StepConstants, tilts: dict, path: PathSolution, reference_gain, fl
         "spot_valid": spot_valid.unsqueeze(-1),
     }
     measurement = {**true, "intensity": intensity}
-    tracked = tracked_point(c, path, flat_point)
+    tracked = path.valid if c.channel.needs_exact_point else near_calm_point(path, flat_point)
     stored = torch.where(tracked.unsqueeze(-1), path.point, flat_point)
-    return measurement, packet, stored, tracked, feature
-
-
-def tracked_point(c: StepConstants, path: PathSolution, flat_point: torch.Tensor) -> torch.Tensor:
-    """Whether each link keeps its path's point as the next warm start ``[n]``: a valid path, or, where
-    the point only centres the two-scale lattice (or nothing), any finite point near the calm-sea one."""
-    if c.tracks_exactly:
-        return path.valid
-    near = torch.linalg.vector_norm(path.point[:, :2] - flat_point[:, :2], dim=-1) < LATTICE_LEASH
-    return torch.isfinite(path.point).all(-1) & near
+    return Record(measurement, packet, stored, tracked, feature)
 
 
 def pack(packet: dict, history: torch.Tensor) -> torch.Tensor:
@@ -227,17 +257,16 @@ def unpack(packet: torch.Tensor) -> dict[str, torch.Tensor]:
     return dict(zip(PACKET_PARTS, packet.split(packet_sizes(history_length), dim=-1), strict=True))
 
 
-def conclude(c: StepConstants, state: dict, moved: dict, solution: tuple, noise, light=None):
-    """The new state and the step's outputs, given the gimbals ``moved`` and the path ``solution``
-    (P ``[B, 3]``, slopes ``[B, 2]``, converged ``[B]``, iterations ``[B]``). The full channel's light
-    is computed here; the Monte Carlo tracer's comes as ``light``."""
-    point, slope, converged, taken = solution
+def conclude(c: StepConstants, state: dict, moved: dict, solution: Solve, noise, light: LightSamples | None = None):
+    """The new state and the step's outputs, given the gimbals ``moved`` and the path ``solution``. The
+    channel's light is computed here unless it comes as ``light`` (a model that does not compile)."""
     n_w, n_a = c.optics.n_water, c.optics.n_air
-    path = finish_path(point, slope, state["tx_position"], state["rx_position"], converged, taken, n_w, n_a)
-    if c.channel == "full":
-        light = full_light(c, state, path, moved["time"])
+    tx, rx = state["tx_position"], state["rx_position"]
+    path = finish_path(solution.point, solution.slope, tx, rx, solution.converged, solution.iterations, n_w, n_a)
+    if light is None:
+        light = channel_light(c, state, path, moved["time"])
     measurement, packet, stored, tracked, feature = record(
-        c, moved, path, state["reference_gain"], state["flat_point"], noise, light
+        c, moved, path, light, state["reference_gain"], state["flat_point"], noise
     )
     history = torch.cat((state["last_feature"].unsqueeze(-1), state["history"][:, :-1]), dim=-1)
     packets = torch.cat((pack(packet, history).unsqueeze(1), state["packets"][:, :-1]), dim=1)
@@ -259,52 +288,29 @@ def conclude(c: StepConstants, state: dict, moved: dict, solution: tuple, noise,
     return new, outputs
 
 
-def full_light(c: StepConstants, state: dict, path: PathSolution, time: torch.Tensor):
-    """The full channel's light for the links of ``state`` (:func:`waterair.envs.channels.light`), the
-    lattice centred on the tracked point (or the calm-sea point where that is lost)."""
-    tracked = tracked_point(c, path, state["flat_point"])
-    centre = torch.where(tracked.unsqueeze(-1), path.point[:, :2], state["flat_point"][:, :2])
-    components = tuple(state[key] for key in SURFACE_KEYS)
-    return channels.light(
-        c.optics,
-        c.two_scale,
-        c.lattice_nodes,
-        c.lattice_span,
-        components,
-        state["tx_position"],
-        state["rx_position"],
-        time,
-        path,
-        centre,
-        state["lattice_basis"],
-        state["blur"],
-    )
-
-
 def step(c: StepConstants, state: dict, action: torch.Tensor, noise: torch.Tensor | None):
-    """One step of every link: (new state entries, outputs, the gimbals ``moved``, the solve's result).
+    """One step of every link: (new state entries, outputs, the gimbals ``moved``, the :class:`Solve`).
 
-    The solve's result is (P, slopes, final (x, y), converged, iterations), for finishing the links
-    that have not converged (:func:`waterair.physics.paths.fixed.finish_unconverged`) and concluding
-    again. ``noise`` is the sensor's draw for this step (:meth:`Sensor.draw`), or None for a noiseless one.
+    The solve is returned for finishing the links that have not converged
+    (:func:`waterair.physics.paths.fixed.finish_unconverged`) and concluding again. ``noise`` is the
+    sensor's draw for this step (:meth:`Sensor.draw`), or None for a noiseless one.
     """
     moved = advance(c, state, action)
-    point, slope, xy, converged, taken = solve(c, state, moved["time"])
-    new, outputs = conclude(c, state, moved, (point, slope, converged, taken), noise)
-    return new, outputs, moved, (point, slope, xy, converged, taken)
+    solution = solve(c, state, moved["time"])
+    new, outputs = conclude(c, state, moved, solution, noise)
+    return new, outputs, moved, solution
 
 
-def finish(c: StepConstants, state: dict, moved: dict, solution: tuple, noise, iterations: int):
+def finish(c: StepConstants, state: dict, moved: dict, solution: Solve, noise, iterations: int):
     """:func:`step`'s solve continued for ``iterations`` more masked iterations on every link, then concluded.
 
     For small batches, where a dense pass costs less than gathering the unconverged links; links
-    that had converged take no step. Returns (new state entries, outputs, the solve's result).
+    that had converged take no step. Returns (new state entries, outputs, the :class:`Solve`).
     """
-    xy, taken = solution[2], solution[4]
-    point, slope, xy, converged, more = solve(c, state, moved["time"], xy, iterations)
-    taken = taken + more
-    new, outputs = conclude(c, state, moved, (point, slope, converged, taken), noise)
-    return new, outputs, (point, slope, xy, converged, taken)
+    more = solve(c, state, moved["time"], solution.xy, iterations)
+    solution = more._replace(iterations=solution.iterations + more.iterations)
+    new, outputs = conclude(c, state, moved, solution, noise)
+    return new, outputs, solution
 
 
 def misalignment(c: StepConstants, measurement: dict) -> torch.Tensor:

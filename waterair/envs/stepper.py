@@ -3,7 +3,8 @@
 :class:`Stepper` calls the one-graph step, and in the rare case that some link's fixed-iteration
 path solve has not converged, continues those links and concludes the step again (only where the
 channel needs the exact point: the two-scale lattice merely centres on it); with the ``centroid``
-solver it solves eagerly and concludes in the graph; with the Monte Carlo channel it traces eagerly.
+solver it solves eagerly and concludes in the graph; a channel whose light does not compile (the
+Monte Carlo tracer) gets it eagerly, with the environment's generator.
 Compiled functions are built on first use and shared by every environment in the process
 (``torch.compile`` guards on the configuration, so environments that differ get graphs of their own).
 """
@@ -15,10 +16,9 @@ import functools
 import torch
 
 from waterair.envs import kernel
-from waterair.envs.kernel import SURFACE_KEYS, StepConstants
-from waterair.physics.montecarlo import trace
-from waterair.physics.optics import beam_divergence, unit_vector
-from waterair.physics.paths import FixedNewtonOptions, solve_path
+from waterair.envs.kernel import Solve, StepConstants
+from waterair.physics.channel import LightSamples, LinkEnds
+from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path, solve_path
 from waterair.physics.paths.fixed import finish_unconverged
 from waterair.physics.surface import WaveSurface
 
@@ -35,29 +35,27 @@ def compiled(name: str):
 
 
 class Stepper:
-    """The step of one environment: ``constants``, its solver, and whether to run compiled."""
+    """The step of one environment: ``constants``, its solver, whether to run compiled, and the
+    generator of a channel that draws random numbers (the Monte Carlo tracer)."""
 
     def __init__(
-        self,
-        constants: StepConstants,
-        solver: str,
-        compile_kernel: bool,
-        montecarlo: tuple[int, int, torch.Generator] | None = None,
+        self, constants: StepConstants, solver: str, compile_kernel: bool, generator: torch.Generator | None = None
     ):
         self.constants, self.solver, self.compile_kernel = constants, solver, compile_kernel
-        self.montecarlo = montecarlo  # (rays, facets, generator) of env.channel=montecarlo
+        self.generator = generator
         pick = compiled if compile_kernel else functools.partial(getattr, kernel)
         self._step, self._finish, self._conclude = pick("step"), pick("finish"), pick("conclude")
 
     def __call__(self, surface: WaveSurface, state: dict, action: torch.Tensor, noise):
         """(new state entries, outputs) of one step; ``state`` includes the surface's components."""
         c = self.constants
-        if c.channel == "montecarlo":
+        if not c.channel.compiles:
             moved = kernel.advance(c, state, action)
-            point, slope, _, converged, taken = kernel.solve(c, state, moved["time"])
-            tx, rx = state["tx_position"], state["rx_position"]
-            light = self.montecarlo_light(surface, tx, rx, moved["time"], state["flat_point"])
-            return kernel.conclude(c, state, moved, (point, slope, converged, taken), noise, light)
+            solution = kernel.solve(c, state, moved["time"])
+            n_w, n_a = c.optics.n_water, c.optics.n_air
+            path = _path(solution, state, n_w, n_a)
+            light = kernel.channel_light(c, state, path, moved["time"], self.generator)
+            return kernel.conclude(c, state, moved, solution, noise, light)
         if self.solver == "centroid":
             moved = kernel.advance(c, state, action)
             path = solve_path(
@@ -72,45 +70,19 @@ class Stepper:
                 compiled=self.compile_kernel,
             )
             slope = -path.normal[:, :2] / path.normal[:, 2:]
-            return self._conclude(c, state, moved, (path.point, slope, path.valid, path.iterations), noise)
+            solution = Solve(path.point, slope, path.point[:, :2], path.valid, path.iterations)
+            return self._conclude(c, state, moved, solution, noise)
         new, outputs, moved, solution = self._step(c, state, action, noise)
-        if not c.tracks_exactly or bool(solution[3].all()):  # the one host synchronisation of a step
+        if not c.channel.needs_exact_point or bool(solution.converged.all()):  # the step's one host synchronisation
             return new, outputs
         return self._finish_paths(surface, state, moved, solution, noise)
 
-    def reset_light(self, surface: WaveSurface, ends: dict, path, time: torch.Tensor):
-        """The light of freshly reset links (their ``surface`` rows, ``ends``: flat point, positions,
-        lattice), or None for ``single_path``."""
-        c = self.constants
-        if c.channel == "full":
-            state = {**ends, **{key: getattr(surface, key) for key in SURFACE_KEYS}}
-            return kernel.full_light(c, state, path, time)
-        if c.channel == "montecarlo":
-            tx, rx, flat = ends["tx_position"], ends["rx_position"], ends["flat_point"]
-            return self.montecarlo_light(surface, tx, rx, time, flat)
-        return None
-
-    def montecarlo_light(self, surface: WaveSurface, tx, rx, time: torch.Tensor, flat_point: torch.Tensor):
-        """The Monte Carlo tracer's hits for links ``[n]`` (eager): rays from each transmitter around
-        its calm-sea direction, twice as wide as the beam, counted across the calm-sea arrival."""
-        assert self.montecarlo is not None
-        rays, facets, generator = self.montecarlo
-        optics = self.constants.optics
-        axis, reference = unit_vector(flat_point - tx), unit_vector(rx - flat_point)
-        result = trace(
-            surface,
-            tx,
-            rx,
-            time,
-            optics,
-            axis=axis,
-            reference=reference,
-            width=beam_divergence(optics.divergence, optics.wavelength),
-            rays=rays,
-            facets=facets,
-            generator=generator,
-        )
-        return result.light
+    def reset_light(
+        self, surface: WaveSurface, ends: LinkEnds, prepared: dict, path: PathSolution, time: torch.Tensor
+    ) -> LightSamples:
+        """The light of freshly reset links (their ``surface`` rows, ``ends`` and the channel's ``prepared``
+        constants), eagerly."""
+        return self.constants.channel.light(surface.harmonics, path, ends, time, prepared, self.generator)
 
     def _finish_paths(self, surface: WaveSurface, state: dict, moved: dict, solution: tuple, noise):
         """Finish the links whose fixed-iteration solve has not converged, then conclude the step again.
@@ -124,18 +96,17 @@ class Stepper:
         c = self.constants
         if self.compile_kernel and state["time"].shape[0] <= DENSE_FINISH_BATCH:
             new, outputs, solution = self._finish(c, state, moved, solution, noise, FINISH_ITERATIONS)
-            if bool(solution[3].all()):
+            if bool(solution.converged.all()):
                 return new, outputs
         options = FixedNewtonOptions(
             iterations=FINISH_ITERATIONS, tol=c.tolerance, armijo=c.solver.armijo, max_step=c.solver.max_step
         )
-        point, slope, xy, converged, taken = solution
-        finished = finish_unconverged(
-            point,
-            slope,
-            xy,
-            converged,
-            taken,
+        point, slope, converged, taken = finish_unconverged(
+            solution.point,
+            solution.slope,
+            solution.xy,
+            solution.converged,
+            solution.iterations,
             surface,
             state["tx_position"],
             state["rx_position"],
@@ -145,4 +116,10 @@ class Stepper:
             options,
             self.compile_kernel,
         )
-        return self._conclude(c, state, moved, finished, noise)
+        return self._conclude(c, state, moved, Solve(point, slope, solution.xy, converged, taken), noise)
+
+
+def _path(solution: Solve, state: dict, n_w: float, n_a: float) -> PathSolution:
+    """The path through a solve's point, between the state's ends."""
+    tx, rx = state["tx_position"], state["rx_position"]
+    return finish_path(solution.point, solution.slope, tx, rx, solution.converged, solution.iterations, n_w, n_a)

@@ -8,50 +8,62 @@ Equations and the corrections to the paper are in docs/model.md.
 """
 
 from waterair.physics.channel import (
+    CHANNELS,
     ChannelGain,
+    ChannelModel,
     LightSamples,
+    LinkEnds,
     LinkGeometry,
+    MonteCarlo,
+    MonteCarloLight,
+    RayTube,
+    SinglePath,
     Transceiver,
+    TwoScale,
     calm_sea_gain,
-    calm_sea_gains,
     channel_gain,
-    gain_upper_bound,
+    channel_model,
     pointing,
     received_gain,
-    two_scale_light,
-    upper_bound,
+    trace,
 )
 from waterair.physics.link import LinkBudget, LinkPerformance, Receiver, link_performance
-from waterair.physics.montecarlo import MonteCarloLight, trace
 from waterair.physics.paths import CentroidOptions, NewtonOptions, PathSolution, flat_sea_point, solve_path
 from waterair.physics.paths.census import RefractionPoints, refraction_points
 from waterair.physics.sea import MeanSquareSlope, SeaState, cox_munk, elevation_spectrum, jonswap, spreading
-from waterair.physics.surface import SurfaceSample, WaveSurface
+from waterair.physics.surface import Harmonics, SurfaceSample, WaveSurface
 
 __all__ = [
+    "CHANNELS",
     "CentroidOptions",
     "ChannelGain",
+    "ChannelModel",
+    "Harmonics",
     "LightSamples",
+    "LinkEnds",
     "LinkBudget",
     "LinkGeometry",
     "LinkPerformance",
     "MeanSquareSlope",
+    "MonteCarlo",
     "MonteCarloLight",
     "NewtonOptions",
     "PathSolution",
+    "RayTube",
     "Receiver",
     "RefractionPoints",
     "SeaState",
+    "SinglePath",
     "SurfaceSample",
     "Transceiver",
+    "TwoScale",
     "WaveSurface",
     "calm_sea_gain",
-    "calm_sea_gains",
     "channel_gain",
+    "channel_model",
     "cox_munk",
     "elevation_spectrum",
     "flat_sea_point",
-    "gain_upper_bound",
     "jonswap",
     "link_performance",
     "pointing",
@@ -60,6 +72,4 @@ __all__ = [
     "solve_path",
     "spreading",
     "trace",
-    "two_scale_light",
-    "upper_bound",
 ]

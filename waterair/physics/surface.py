@@ -14,6 +14,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import torch
 from tensordict import TensorClass
@@ -37,6 +38,18 @@ class SurfaceSample:
     dxx: torch.Tensor | None = None
     dxy: torch.Tensor | None = None
     dyy: torch.Tensor | None = None
+
+
+class Harmonics(NamedTuple):
+    """The resolved surface of B seas as plain tensors, each ``[B, K]``: ``omega`` (rad/s), ``phase``
+    (rad), ``kx``, ``ky`` (rad/m), ``amplitude`` (m). What the surface and channel functions read, in
+    their argument order (``harmonic_sums(*harmonics, ...)``); a compiled step passes it through its graph."""
+
+    omega: torch.Tensor
+    phase: torch.Tensor
+    kx: torch.Tensor
+    ky: torch.Tensor
+    amplitude: torch.Tensor
 
 
 def harmonic_sums(omega, phase, kx, ky, amplitude, x, y, t, order: int):
@@ -167,6 +180,11 @@ class WaveSurface(TensorClass):
             unresolved=unresolved.to(device=device, dtype=dtype),
             batch_size=[batch],
         )
+
+    @property
+    def harmonics(self) -> Harmonics:
+        """The resolved components as :class:`Harmonics`."""
+        return Harmonics(self.omega, self.phase, self.kx, self.ky, self.amplitude)
 
     @property
     def num_harmonics(self) -> int:

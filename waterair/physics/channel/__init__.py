@@ -1,47 +1,67 @@
 """Channel models: how much of the beam reaches the receiver (docs/model.md §4).
 
-* :mod:`.single_path`: the paper's model, one refracted path with a flat-sea power law
-  (``env.channel=single_path``, ``+experiment=paper``).
-* :mod:`.ray_tube`: the exact power through one refraction point, with its lensing (the
-  ray-tube factor), bounded by the aperture at caustics; the calm-sea reference G_0.
-* :mod:`.lattice`: the two-scale channel, every point of the resolved surface blurred by the
+Every model is a :class:`~.model.ChannelModel` (the interface, §4.7), chosen by name through
+:func:`~.registry.channel_model`:
+
+* :class:`SinglePath` (:mod:`.single_path`): the paper's model, one refracted path with a flat-sea
+  power law (``env.channel=single_path``, ``+experiment=paper``).
+* :class:`RayTube` (:mod:`.ray_tube`): the exact power through one refraction point, with its
+  lensing (the ray-tube factor), bounded by the aperture at caustics; the calm-sea reference G_0.
+* :class:`TwoScale` (:mod:`.lattice`): every point of the resolved surface blurred by the
   unresolved slopes and the aperture (``env.channel=full`` on the measured-slope sea).
-* :mod:`.light`: the light at the receiver as weighted rays, the gain of a pointing, the upper bound
-  and the light's centroid on the detector, shared by both and by the Monte Carlo tracer.
-* :mod:`.geometry`: where the ends are and what optics they carry.
+* :class:`MonteCarlo` (:mod:`.montecarlo`): an independent ray tracer, the reference.
+
+Around them: :mod:`.light` (the light at the receiver as weighted rays, and what a pointing makes of
+it: gain, upper bound, centroid, for every model), :mod:`.facets` (the facet a ray needs and the
+aperture's blur), :mod:`.geometry` (where the ends are and what optics they carry).
 """
 
 from waterair.physics.channel.geometry import LinkGeometry, Transceiver, pointing
-from waterair.physics.channel.lattice import LATTICE_NODES, LATTICE_SPAN, lattice_shape, two_scale_light
-from waterair.physics.channel.light import LightSamples, light_centroid, pointed_gains, received_gain, upper_bound
+from waterair.physics.channel.lattice import LATTICE_NODES, LATTICE_SPAN, TwoScale, lattice_shape, two_scale_light
+from waterair.physics.channel.light import (
+    LightSamples,
+    Reception,
+    light_centroid,
+    pointed_gains,
+    receive,
+    received_gain,
+    upper_bound,
+)
+from waterair.physics.channel.model import ChannelModel, LinkEnds
+from waterair.physics.channel.montecarlo import MonteCarlo, MonteCarloLight, standard_error, trace
 from waterair.physics.channel.ray_tube import (
+    RayTube,
     calm_sea_reference,
     flat_sea_irradiance,
     hessian_eigenvectors,
     ray_tube_factor,
     ray_tube_light,
 )
-from waterair.physics.channel.single_path import (
-    ChannelGain,
-    calm_sea_gain,
-    calm_sea_gains,
-    channel_gain,
-    gain_upper_bound,
-)
+from waterair.physics.channel.registry import CHANNELS, channel_model
+from waterair.physics.channel.single_path import ChannelGain, SinglePath, calm_sea_gain, calm_sea_gains, channel_gain
 
 __all__ = [
+    "CHANNELS",
     "LATTICE_NODES",
     "LATTICE_SPAN",
     "ChannelGain",
+    "ChannelModel",
     "LightSamples",
+    "LinkEnds",
     "LinkGeometry",
+    "MonteCarlo",
+    "MonteCarloLight",
+    "RayTube",
+    "Reception",
+    "SinglePath",
     "Transceiver",
+    "TwoScale",
     "calm_sea_gain",
     "calm_sea_gains",
     "calm_sea_reference",
     "channel_gain",
+    "channel_model",
     "flat_sea_irradiance",
-    "gain_upper_bound",
     "hessian_eigenvectors",
     "lattice_shape",
     "light_centroid",
@@ -49,7 +69,10 @@ __all__ = [
     "pointing",
     "ray_tube_factor",
     "ray_tube_light",
+    "receive",
     "received_gain",
+    "standard_error",
+    "trace",
     "two_scale_light",
     "upper_bound",
 ]

@@ -23,15 +23,20 @@ against a fine grid in docs/model.md §4.3. Each node is one order-1 surface eva
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 import torch
 
+from waterair.core.validation import check_int, check_range
 from waterair.physics.channel.facets import aperture_slope_variance, facet_normal
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
+from waterair.physics.channel.model import ChannelModel, LinkEnds
+from waterair.physics.channel.ray_tube import calm_sea_reference
 from waterair.physics.optics import beam_divergence, water_transmittance
-from waterair.physics.paths import flat_sea_point
-from waterair.physics.surface import harmonic_sums
+from waterair.physics.paths import PathSolution, flat_sea_point, near_calm_point
+from waterair.physics.surface import Harmonics, harmonic_sums
 
 LATTICE_NODES = 7
 """Nodes per axis of the lattice (n² surface evaluations per link): within 2 % (rms) of a fine grid
@@ -40,6 +45,50 @@ LATTICE_SPAN = 4.0
 """Half-width of the lattice in standard deviations of its Gaussian (the trapezoid rule's tails)."""
 LARGEST_PATCH = 0.8
 """Prior width (m) of the patch: a floor on its precision, where the blur would spread it further."""
+
+
+@dataclass(frozen=True)
+class TwoScale(ChannelModel):
+    """Every point of the resolved surface, blurred by the unresolved slopes and the aperture (eq. 4.8), on
+    a ``nodes`` × ``nodes`` lattice of half-width ``span`` standard deviations around the tracked point
+    (the calm-sea point where that is lost): the full channel on a sea with unresolved slopes.
+
+    Attributes: nodes, odd in [3, 31]; span in [1, 8].
+    """
+
+    nodes: int = LATTICE_NODES
+    span: float = LATTICE_SPAN
+
+    needs_exact_point = False
+    prepared_keys = ("lattice_basis", "blur")
+
+    def __post_init__(self) -> None:
+        check_int("nodes", self.nodes, 3, 31)
+        if self.nodes % 2 == 0:
+            raise ValueError(f"nodes = {self.nodes} is not allowed; it must be odd (a node on the centre)")
+        check_range("span", self.span, 1.0, 8.0)
+
+    def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
+        return calm_sea_reference(tx, rx, self.optics)
+
+    def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> dict[str, torch.Tensor]:
+        """The lattice's basis ``[B, 2, 2]`` and blur ``[B, 3]`` (:func:`lattice_shape`, in float64)."""
+        basis, blur = lattice_shape(tx.double(), rx.double(), unresolved.double(), self.optics)
+        return {"lattice_basis": basis.to(tx.dtype), "blur": blur.to(tx.dtype)}
+
+    def light(
+        self,
+        sea: Harmonics,
+        path: PathSolution,
+        ends: LinkEnds,
+        time: torch.Tensor,
+        prepared: Mapping[str, torch.Tensor],
+        generator: torch.Generator | None = None,
+    ) -> LightSamples:
+        followed = near_calm_point(path, ends.calm_point).unsqueeze(-1)
+        centre = torch.where(followed, path.point[:, :2], ends.calm_point[:, :2])
+        basis, blur = prepared["lattice_basis"], prepared["blur"]
+        return two_scale_light(sea, ends.tx, ends.rx, time, centre, basis, blur, self.optics, self.nodes, self.span)
 
 
 def lattice_shape(tx: torch.Tensor, rx: torch.Tensor, slope_covariance: torch.Tensor, optics: Transceiver):

@@ -17,12 +17,13 @@ pointings (:func:`upper_bound`), and the quadrant detector reads the light's cen
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import torch
 from tensordict import TensorClass
 
 from waterair.physics.channel.geometry import Transceiver
-from waterair.physics.optics import angle_between, arrival_gain, departure_gain
+from waterair.physics.optics import angle_between, arrival_gain, departure_gain, peak_arrival_gain
 
 UPPER_BOUND_ITERATIONS = 4
 """Alternating ascent steps of :func:`upper_bound` from each of its two starts."""
@@ -38,6 +39,61 @@ class LightSamples(TensorClass):
     weight: torch.Tensor
     departure: torch.Tensor
     arrival: torch.Tensor
+
+
+class Reception(NamedTuple):
+    """What pointings make of the light at each receiver (:func:`receive`), each with leading shape ``[B]``.
+
+    ``gain`` G and ``upper_bound`` G_UB (1/m²); ``valid``: light can reach the receiver (G_UB > 0);
+    ``departure`` the best transmitter pointing and ``arrival`` the best arrival direction (the
+    receiver's boresight reversed), unit ``[B, 3]``; ``alpha_d``, ``alpha_a`` the pointings' angles
+    from them (rad); ``spot_arrival`` the arrival direction the quadrant detector reads ``[B, 3]`` and
+    ``lit`` whether it reads any.
+    """
+
+    gain: torch.Tensor
+    upper_bound: torch.Tensor
+    valid: torch.Tensor
+    departure: torch.Tensor
+    arrival: torch.Tensor
+    alpha_d: torch.Tensor
+    alpha_a: torch.Tensor
+    spot_arrival: torch.Tensor
+    lit: torch.Tensor
+
+
+def receive(
+    light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver, along_path: bool = False
+) -> Reception:
+    """Gain, upper bound, best pointing and the quadrant detector's reading for pointings ``[B, 3]``.
+
+    Light from many places: the bound and its pointing by :func:`upper_bound`, the reading the
+    light's centroid (:func:`light_centroid`). ``along_path``: the light is one ray along the tracked
+    path, as in the paper (docs/model.md §4.1): the best pointing is along it, G_UB = W n_c²/sin² ω_A,
+    and the detector reads the ray's arrival wherever it falls within the field of view.
+    """
+    shares = pointed_gains(light, tx_dir, rx_dir, optics)
+    if along_path:
+        departure, arrival = light.departure[:, 0], light.arrival[:, 0]
+        bound = light.weight[:, 0] * peak_arrival_gain(optics.half_fov, optics.concentrator_index)
+        alpha_a = angle_between(rx_dir, -arrival)
+        spot_arrival, lit = arrival, arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index) > 0
+    else:
+        bound, departure, boresight = upper_bound(light, optics)
+        arrival = -boresight
+        alpha_a = angle_between(rx_dir, boresight)
+        spot_arrival, lit = light_centroid(light, shares, rx_dir)
+    return Reception(
+        gain=shares.sum(-1),
+        upper_bound=bound,
+        valid=bound > 0,
+        departure=departure,
+        arrival=arrival,
+        alpha_d=angle_between(tx_dir, departure),
+        alpha_a=alpha_a,
+        spot_arrival=spot_arrival,
+        lit=lit,
+    )
 
 
 def pointed_gains(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:

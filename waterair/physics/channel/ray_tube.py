@@ -21,18 +21,49 @@ bounds the power there (:func:`ray_tube_factor`). Gains here are per unit on-axi
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
+
 import torch
 
 from waterair.physics.channel.facets import aperture_slope_variance, facet_normal
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
+from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.optics import peak_arrival_gain, water_transmittance
-from waterair.physics.paths import flat_sea_point
+from waterair.physics.paths import PathSolution, flat_sea_point
+from waterair.physics.paths.newton import fermat_terms
+from waterair.physics.surface import Harmonics, directional_third_derivatives
 
 FOLD_CONSTANT = 2.705
 """κ / (σ b) of the aperture-bounded fold (docs/model.md §4.2): a pair of points merging at a fold
 caustic, each with |ζ'| replaced by sqrt(ζ'² + κ), sums to the exact Gaussian-blurred peak
 2 Γ(5/4) 8^{1/4} / sqrt(2π σ b) = 1.216 / sqrt(σ b)."""
+
+
+@dataclass(frozen=True)
+class RayTube(ChannelModel):
+    """The exact power through the tracked refraction point, with its lensing (eq. 4.4), bounded at
+    caustics by the aperture through the surface's third derivatives along the Hessian's axes: the full
+    channel on a sea without unresolved slopes (``env.channel=full`` on the paper's sea)."""
+
+    def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
+        return calm_sea_reference(tx, rx, self.optics)
+
+    def light(
+        self,
+        sea: Harmonics,
+        path: PathSolution,
+        ends: LinkEnds,
+        time: torch.Tensor,
+        prepared: Mapping[str, torch.Tensor],
+        generator: torch.Generator | None = None,
+    ) -> LightSamples:
+        optics, xy = self.optics, path.point[:, :2]
+        _, _, hessian, _, _ = fermat_terms(*sea, xy, time, ends.tx, ends.rx, optics.n_water, optics.n_air)
+        third = directional_third_derivatives(*sea, xy, time, hessian_eigenvectors(hessian))
+        slope = -path.normal[:, :2] / path.normal[:, 2:]
+        return ray_tube_light(path.point, slope, hessian, path.valid, ends.tx, ends.rx, optics, third)
 
 
 def ray_tube_factor(

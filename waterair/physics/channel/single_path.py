@@ -1,16 +1,22 @@
 """The paper's channel: one refracted path and a flat-sea power law (docs/model.md §4.1, paper eq. (1)).
 
-    G = G_D(α_D) · G_p(d_water, d_air) · G_ref(θ1) · G_A(α_A)
+    G = G_p(d_water, d_air) · G_ref(θ1) · G_D(α_D) · G_A(α_A)
 
-``env.channel=single_path`` and ``+experiment=paper``. Distances in metres, angles in radians.
+:class:`SinglePath` is it as a channel model (``env.channel=single_path``, ``+experiment=paper``): one
+ray of weight G_p G_ref along the tracked path. Distances in metres, angles in radians.
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 import torch
 from tensordict import TensorClass
 
 from waterair.physics.channel.geometry import LinkGeometry, Transceiver
+from waterair.physics.channel.light import LightSamples
+from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.optics import (
     angle_between,
     arrival_gain,
@@ -20,6 +26,36 @@ from waterair.physics.optics import (
     peak_arrival_gain,
 )
 from waterair.physics.paths import PathSolution, flat_sea_point
+from waterair.physics.surface import Harmonics
+
+
+@dataclass(frozen=True)
+class SinglePath(ChannelModel):
+    """The paper's model: the tracked path's one ray, weighted G_p G_ref; its bound is the paper's G_UB
+    and G_0 the paper's calm-sea gain (:func:`calm_sea_gains`)."""
+
+    along_path = True
+
+    def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
+        return calm_sea_gains(tx, rx, self.optics)
+
+    def light(
+        self,
+        sea: Harmonics,
+        path: PathSolution,
+        ends: LinkEnds,
+        time: torch.Tensor,
+        prepared: Mapping[str, torch.Tensor],
+        generator: torch.Generator | None = None,
+    ) -> LightSamples:
+        g_p, g_ref = _path_terms(path, self.optics)
+        weight = g_p * g_ref
+        return LightSamples(
+            weight=weight.unsqueeze(1),
+            departure=path.departure.unsqueeze(1),
+            arrival=path.arrival.unsqueeze(1),
+            batch_size=[weight.shape[0], 1],
+        )
 
 
 class ChannelGain(TensorClass):
@@ -65,12 +101,6 @@ def channel_gain(path: PathSolution, tx_dir: torch.Tensor, rx_dir: torch.Tensor,
         alpha_a=alpha_a,
         batch_size=gain.shape[:1],
     )
-
-
-def gain_upper_bound(path: PathSolution, optics: Transceiver) -> torch.Tensor:
-    """G_UB = G_p G_ref n_c² / sin² ω_A: both ends pointed along the path (docs/model.md §4), ``[B]`` (1/m²)."""
-    g_p, g_ref = _path_terms(path, optics)
-    return g_p * g_ref * peak_arrival_gain(optics.half_fov, optics.concentrator_index)
 
 
 def calm_sea_gain(link: LinkGeometry, optics: Transceiver, dtype: torch.dtype = torch.float64) -> float:

@@ -16,7 +16,7 @@ from waterair.physics.optics import N_AIR, N_WATER
 from waterair.physics.paths.centroid import CentroidOptions, solve_centroid
 from waterair.physics.paths.fixed import FixedNewtonOptions, solve_newton_fixed
 from waterair.physics.paths.newton import NewtonOptions, solve_newton
-from waterair.physics.paths.solution import PathSolution, finish_path, flat_sea_point
+from waterair.physics.paths.solution import TRACK_LEASH, PathSolution, finish_path, flat_sea_point, near_calm_point
 from waterair.physics.surface import WaveSurface
 
 METHODS = ("newton", "newton_fixed", "centroid")
@@ -78,11 +78,13 @@ def _options(options, kind: type[OptionsT]) -> OptionsT:
 
 __all__ = [
     "METHODS",
+    "TRACK_LEASH",
     "CentroidOptions",
     "FixedNewtonOptions",
     "NewtonOptions",
     "PathSolution",
     "finish_path",
     "flat_sea_point",
+    "near_calm_point",
     "solve_path",
 ]

@@ -16,6 +16,11 @@ from tensordict import TensorClass
 from waterair.physics.optics import N_AIR, N_WATER, angle_between, critical_angle
 
 
+TRACK_LEASH = 3.0
+"""How far (m) a tracked refraction point may stray from the calm-sea point and still be followed where
+the exact point is not needed: the light comes from within a metre or so of it at any wind (docs/model.md §4.3)."""
+
+
 class PathSolution(TensorClass):
     """The primary path for each batch element; every field has leading shape ``[B]``.
 
@@ -85,3 +90,11 @@ def finish_path(point, slope, tx, rx, converged, iterations, n_w, n_a) -> PathSo
         iterations=iterations,
         batch_size=point.shape[:1],
     )
+
+
+def near_calm_point(path: PathSolution, calm_point: torch.Tensor, leash: float = TRACK_LEASH) -> torch.Tensor:
+    """Whether each path's point ``[B]`` is finite and within ``leash`` (m, horizontally) of the calm-sea
+    point ``[B, 3]``: where only the neighbourhood of the light matters (the two-scale lattice's
+    centre, a warm start), such a point is followed even if its solve has not converged."""
+    near = torch.linalg.vector_norm(path.point[:, :2] - calm_point[:, :2], dim=-1) < leash
+    return torch.isfinite(path.point).all(-1) & near

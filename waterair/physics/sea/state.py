@@ -88,6 +88,12 @@ class SeaState:
     # --- the paper's JONSWAP sea (docs/model.md §1.1) ------------------------------------------
 
     @property
+    def two_scale(self) -> bool:
+        """Whether the sea carries the waves beyond its cutoff as unresolved slopes (``elfouhaily``): a
+        two-scale sea, whose full channel is the two-scale lattice (docs/model.md §4.3)."""
+        return self.spectrum == "elfouhaily"
+
+    @property
     def alpha(self) -> float:
         """JONSWAP Phillips constant α (dimensionless)."""
         return jonswap_alpha(self.wind, self.fetch)

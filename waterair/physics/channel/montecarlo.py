@@ -17,14 +17,20 @@ m, rad, 1/m² per unit on-axis radiant intensity.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 import torch
 from tensordict import TensorClass
 
+from waterair.core.validation import check_int, check_range
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples, pointed_gains
-from waterair.physics.optics import refract, transverse_frame, water_transmittance
-from waterair.physics.surface import WaveSurface, harmonic_sums
+from waterair.physics.channel.model import ChannelModel, LinkEnds
+from waterair.physics.channel.ray_tube import calm_sea_reference
+from waterair.physics.optics import beam_divergence, refract, transverse_frame, unit_vector, water_transmittance
+from waterair.physics.paths import PathSolution
+from waterair.physics.surface import Harmonics, harmonic_sums
 
 INTERSECTION_ITERATIONS = 8
 """Newton steps of each ray's surface intersection (from the z = 0 crossing): the residual falls
@@ -41,8 +47,78 @@ class MonteCarloLight(TensorClass):
     rays: torch.Tensor
 
 
+@dataclass(frozen=True)
+class MonteCarlo(ChannelModel):
+    """The Monte Carlo tracer as a channel model (``env.channel=montecarlo``; slow, for evaluation): ``rays``
+    surface rays per link and step, ``facets`` unresolved-slope draws each, from a proposal
+    ``proposal_beams`` beam divergences wide around the calm-sea departure, counted across the
+    calm-sea arrival. Eager (it draws random numbers from the caller's generator).
+
+    Attributes: rays in [1, 1e9]; facets in [1, 1e5]; proposal_beams in (0, 100].
+    """
+
+    rays: int = 20_000
+    facets: int = 64
+    proposal_beams: float = 1.0
+
+    needs_exact_point = False
+    compiles = False
+    prepared_keys = ("unresolved",)
+
+    def __post_init__(self) -> None:
+        check_int("rays", self.rays, 1, 10**9)
+        check_int("facets", self.facets, 1, 10**5)
+        check_range("proposal_beams", self.proposal_beams, 0.0, 100.0, low_open=True)
+
+    def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
+        return calm_sea_reference(tx, rx, self.optics)
+
+    def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> dict[str, torch.Tensor]:
+        """The unresolved slope covariance ``[B, 3]`` the facets are drawn from."""
+        return {"unresolved": unresolved.to(tx.dtype)}
+
+    def light(
+        self,
+        sea: Harmonics,
+        path: PathSolution,
+        ends: LinkEnds,
+        time: torch.Tensor,
+        prepared: Mapping[str, torch.Tensor],
+        generator: torch.Generator | None = None,
+    ) -> LightSamples:
+        return self.trace(sea, prepared["unresolved"], ends, time, generator).light
+
+    def trace(
+        self,
+        sea: Harmonics,
+        unresolved: torch.Tensor,
+        ends: LinkEnds,
+        time: float | torch.Tensor,
+        generator: torch.Generator | None,
+    ) -> MonteCarloLight:
+        """The hits with the rays they came from (for :func:`standard_error`); arguments as :meth:`light`."""
+        if generator is None:
+            raise ValueError("the Monte Carlo channel draws its rays from a generator; pass one")
+        tx, rx, calm = ends
+        return trace(
+            sea,
+            unresolved,
+            tx,
+            rx,
+            time,
+            self.optics,
+            axis=unit_vector(calm - tx),
+            reference=unit_vector(rx - calm),
+            width=self.proposal_beams * beam_divergence(self.optics.divergence, self.optics.wavelength),
+            rays=self.rays,
+            facets=self.facets,
+            generator=generator,
+        )
+
+
 def trace(
-    surface: WaveSurface,
+    sea: Harmonics,
+    unresolved: torch.Tensor,
     tx: torch.Tensor,
     rx: torch.Tensor,
     t: float | torch.Tensor,
@@ -59,7 +135,8 @@ def trace(
     """Trace ``rays`` rays per link from ``tx`` toward the surface, ``facets`` facet draws each.
 
     Args:
-        surface: B seas (its ``unresolved`` covariance tilts the facets; zero: the resolved surface only).
+        sea: the resolved surfaces of B seas; unresolved: their slope covariance ``[B, 3]``, which tilts
+            the facets (zero: the resolved surface only).
         tx, rx: T and R (m) ``[B, 3]``; t: time (s), a float or ``[B]``.
         optics: transceiver (attenuation, indices, aperture diameter).
         axis: unit centre of the proposal ``[B, 3]`` (up); width: its standard deviation per axis
@@ -70,9 +147,9 @@ def trace(
         memory: elements of one [B, rays, K] surface evaluation: rays are traced in chunks under it.
     """
     batch, dtype, device = tx.shape[0], tx.dtype, tx.device
-    chunk = max(16, memory // (batch * surface.num_harmonics))
+    chunk = max(16, memory // (batch * sea.omega.shape[-1]))
     e1, e2 = transverse_frame(axis)
-    covariance = surface.unresolved.to(torch.float64)
+    covariance = unresolved.to(torch.float64)
     xx, xy, yy = covariance.unbind(-1)
     jitter = 1e-30
     l11 = torch.sqrt(xx + jitter)
@@ -91,7 +168,7 @@ def trace(
         tangent, tilt = tangent.to(device=device, dtype=dtype), tilt.to(device=device)
         facet_slopes = torch.einsum("bij,bnmj->bnmi", cholesky.to(device), tilt).to(dtype)
         pieces.append(
-            _trace_chunk(surface, tx, rx, t, optics, axis, e1, e2, reference, tangent, width, facet_slopes, start, area)
+            _trace_chunk(sea, tx, rx, t, optics, axis, e1, e2, reference, tangent, width, facet_slopes, start, area)
         )
     weight, departure, arrival, ray = (torch.cat(part, dim=1) for part in zip(*pieces, strict=True))
     weight = weight / (rays * facets)
@@ -126,7 +203,7 @@ def standard_error(result: MonteCarloLight, tx_dir: torch.Tensor, rx_dir: torch.
     return gain, per_ray.std(1) / math.sqrt(rays)
 
 
-def _trace_chunk(surface, tx, rx, t, optics, axis, e1, e2, reference, tangent, width, facet_slopes, start, area):
+def _trace_chunk(sea, tx, rx, t, optics, axis, e1, e2, reference, tangent, width, facet_slopes, start, area):
     """One chunk of rays: (weight, departure, arrival, ray index), each ``[B, count · facets, ·]``."""
     batch, count, facets = facet_slopes.shape[:3]
     angle = torch.linalg.vector_norm(tangent, dim=-1).clamp(min=1e-300)
@@ -138,17 +215,16 @@ def _trace_chunk(surface, tx, rx, t, optics, axis, e1, e2, reference, tangent, w
     proposal = torch.exp(-0.5 * (tangent**2).sum(-1) / width**2) / (2.0 * math.pi * width**2) * angle / torch.sin(angle)
     distance = -tx[:, 2:3] / direction[..., 2]  # to z = 0
     time = torch.as_tensor(t, dtype=tx.dtype, device=tx.device).expand(batch)
-    components = (surface.omega, surface.phase, surface.kx, surface.ky, surface.amplitude)
     for _ in range(INTERSECTION_ITERATIONS):
         x = tx[:, 0:1] + distance * direction[..., 0]
         y = tx[:, 1:2] + distance * direction[..., 1]
-        height, slope_x, slope_y = harmonic_sums(*components, x, y, time, 1)
+        height, slope_x, slope_y = harmonic_sums(*sea, x, y, time, 1)
         residual = tx[:, 2:3] + distance * direction[..., 2] - height
         rate = direction[..., 2] - slope_x * direction[..., 0] - slope_y * direction[..., 1]
         distance = distance - residual / rate
     x = tx[:, 0:1] + distance * direction[..., 0]
     y = tx[:, 1:2] + distance * direction[..., 1]
-    height, slope_x, slope_y = harmonic_sums(*components, x, y, time, 1)
+    height, slope_x, slope_y = harmonic_sums(*sea, x, y, time, 1)
     point = torch.stack((x, y, height), dim=-1)
     # facets: the resolved slope plus each draw of the unresolved one
     slope = torch.stack((slope_x, slope_y), dim=-1).unsqueeze(2) + facet_slopes
