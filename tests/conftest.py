@@ -9,6 +9,7 @@ from omegaconf import OmegaConf
 
 from waterair.envs.config import EnvConfig
 from waterair.physics.channel import LinkGeometry
+from waterair.physics.surface import WaveSurface
 
 ROOT = Path(__file__).resolve().parents[1]
 """The repository root (where train.py, evaluate.py and conf/ live)."""
@@ -31,6 +32,21 @@ TINY = [
     "env.compile_kernel=false",
 ]
 """Overrides that shrink a training run to seconds: a few links, a coarse sea, small networks, eager."""
+F64 = torch.float64
+
+
+def ends(offset: float, batch: int, depth: float = 10.0, height: float = 10.0, dtype=F64):
+    """T and R ``[batch, 3]`` of one geometry (``offset`` ratio, ``depth`` and ``height`` in m)."""
+    tx, rx = LinkGeometry(tx_depth=depth, rx_height=height, offset_ratio=offset).positions(dtype)
+    return tx.expand(batch, 3).contiguous(), rx.expand(batch, 3).contiguous()
+
+
+def calm(surface: WaveSurface) -> WaveSurface:
+    """The same seas with every amplitude and unresolved slope set to zero."""
+    still = surface.clone()
+    still.amplitude = torch.zeros_like(surface.amplitude)
+    still.unresolved = torch.zeros_like(surface.unresolved)
+    return still
 
 
 def compose_config(name: str, overrides=(), **kwargs):

@@ -96,8 +96,8 @@ def test_a_monte_carlo_of_ook_bits_agrees_with_the_ber_formula(power):
 
 
 def test_doubling_the_aperture_area_doubles_signal_and_background_but_not_the_thermal_noise():
-    small = LinkBudget(aperture_diameter=0.05)
-    large = LinkBudget(aperture_diameter=0.05 * math.sqrt(2.0))
+    small = LinkBudget(optics=Transceiver(aperture_diameter=0.05))
+    large = LinkBudget(optics=Transceiver(aperture_diameter=0.05 * math.sqrt(2.0)))
     gain = watts(0.01, 0.001)
     assert torch.allclose(received_power(gain, large), 2.0 * received_power(gain, small), rtol=1e-12)
     assert large.background_power == pytest.approx(2.0 * small.background_power, rel=1e-12)

@@ -15,6 +15,7 @@ import time
 import torch
 
 from waterair.physics import LinkGeometry, SeaState, Transceiver, WaveSurface, flat_sea_point
+from waterair.physics.channel import ray_tube_factor
 from waterair.physics.optics import arrival_gain, departure_gain, fresnel_transmittance, path_gain, unit_vector
 from waterair.physics.paths.census import refraction_points
 
@@ -107,10 +108,7 @@ def _point_gains(found, tx, rx, tx_dir, rx_dir, optics: Transceiver) -> tuple[to
     )
     transmission = fresnel_transmittance(found.theta1, optics.n_water, optics.n_air)
     paper = angular * transmission * path_gain(r1, r2, optics.attenuation_per_m)
-    normal = torch.cat((-found.slope, torch.ones_like(found.slope[..., :1])), -1)
-    hxx, hxy, hyy = found.hessian.unbind(-1)
-    tube = (normal * u1).sum(-1).abs() * (normal * u2).sum(-1).abs() / (r1 * r2) ** 2 / (hxx * hyy - hxy**2).abs()
-    lensed = angular * transmission * torch.exp(-optics.attenuation_per_m * r1) * optics.n_air**2 * tube
+    lensed = angular * ray_tube_factor(point, found.slope, found.hessian, tx.unsqueeze(1), rx.unsqueeze(1), optics)
     zero = torch.zeros_like(paper)
     return torch.where(found.valid, paper, zero), torch.where(found.valid, lensed, zero)
 

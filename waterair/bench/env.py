@@ -18,7 +18,6 @@ import torch
 
 from waterair.bench.common import machine, sincos_floor
 from waterair.core.devices import resolve_device
-from waterair.envs import kernel
 from waterair.envs.env import WaterAirEnv
 
 SECONDS_PER_MEASUREMENT = 2.0
@@ -103,9 +102,7 @@ def solver_counts(env: WaterAirEnv, td, steps: int) -> dict:
     """
     unconverged, finishing = [], []
     for _ in range(steps):
-        state = env._full_state()
-        time_next = state["time"] + env.config.dt
-        left = ~kernel.solve(env.constants, state, time_next)[3]
+        left = env.unconverged_links()
         unconverged.append(left.double().mean().item())
         finishing.append(float(left.any()))
         td = env.step(td)["next"].set("action", td["action"])

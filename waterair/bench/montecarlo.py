@@ -1,10 +1,10 @@
 """The full channel against the Monte Carlo reference: ``python -m waterair.bench montecarlo``.
 
 For the measured-slope sea at each wind: ``seas`` links followed for ``steps`` steps of dt, each
-step traced by :func:`waterair.physics.montecarlo.trace` once and the hits weighted for three fixed
+step traced by :class:`waterair.physics.channel.MonteCarlo` once and the hits weighted for three fixed
 pointings (straight facing, flat-sea Snell, and pointed at the fast model's brightest sample), and
-the fast model's gain (:func:`waterair.physics.channel.two_scale_light` around the tracked point)
-for the same pointings. Per wind and pointing: mean power ratio (fast / reference) with the
+the fast model's gain (:class:`waterair.physics.channel.TwoScale` around the tracked point) for the
+same pointings. Per wind and pointing: mean power ratio (fast / reference) with the
 reference's pooled standard error, scintillation index of each, per-step correlation; and the
 tracer's speed (surface rays and ray-facet pairs per second) and the comparison's wall time.
 """
@@ -17,9 +17,8 @@ import time
 import torch
 
 from waterair.physics import LinkGeometry, SeaState, Transceiver, WaveSurface, flat_sea_point, solve_path
-from waterair.physics.channel import lattice_shape, received_gain, two_scale_light
-from waterair.physics.montecarlo import standard_error, trace
-from waterair.physics.optics import beam_divergence, unit_vector
+from waterair.physics.channel import LinkEnds, MonteCarlo, TwoScale, brightest, received_gain, standard_error
+from waterair.physics.optics import unit_vector
 
 DT = 0.05
 """Seconds between steps (the environment's dt)."""
@@ -32,6 +31,8 @@ def bench_montecarlo(
 ) -> dict:
     """Rows per (wind, pointing), plus the tracer's speed per wind."""
     optics = Transceiver()
+    fast_model = TwoScale(optics)
+    tracer = MonteCarlo(optics, rays=rays, facets=facets, proposal_beams=PROPOSAL_BEAMS)
     rows, speeds = [], []
     for wind in winds:
         sea = SeaState(wind=wind, spectrum="elfouhaily", n_dir=16)
@@ -41,8 +42,8 @@ def bench_montecarlo(
         snell = unit_vector(flat - tx), unit_vector(flat - rx)
         straight = torch.zeros_like(tx), torch.zeros_like(tx)
         straight[0][:, 2], straight[1][:, 2] = 1.0, -1.0
-        basis, blur = lattice_shape(tx, rx, surface.unresolved, optics)
-        components = (surface.omega, surface.phase, surface.kx, surface.ky, surface.amplitude)
+        ends = LinkEnds(tx, rx, flat)
+        prepared = fast_model.prepare(tx, rx, surface.unresolved)
         generator = torch.Generator(device=device).manual_seed(int(wind * 1000))
         fast = {name: [] for name in ("straight", "snell", "brightest")}
         reference = {name: [] for name in fast}
@@ -54,19 +55,14 @@ def bench_montecarlo(
             path = solve_path(surface, tx, rx, t, init=None if point is None else point[:, :2])
             point = path.point
             time_now = torch.full((seas,), t, dtype=dtype, device=device)
-            light = two_scale_light(components, tx, rx, time_now, point[:, :2], basis, blur, optics)
-            index = light.weight.argmax(-1, keepdim=True).unsqueeze(-1).expand(-1, 1, 3)
-            brightest = light.departure.gather(1, index)[:, 0], -light.arrival.gather(1, index)[:, 0]
+            light = fast_model.light(surface.harmonics, path, ends, time_now, prepared)
             clock = time.perf_counter()
-            width = PROPOSAL_BEAMS * beam_divergence(optics.divergence, optics.wavelength)
-            result = trace(
-                surface, tx, rx, t, optics, axis=snell[0], reference=unit_vector(rx - flat),
-                width=width, rays=rays, facets=facets, generator=generator,
-            )  # fmt: skip
+            result = tracer.trace(surface.harmonics, surface.unresolved, ends, t, generator)
             if device.type == "cuda":
                 torch.cuda.synchronize()
             traced_s += time.perf_counter() - clock
-            for name, (tx_dir, rx_dir) in (("straight", straight), ("snell", snell), ("brightest", brightest)):
+            pointings = (("straight", straight), ("snell", snell), ("brightest", brightest(light)))
+            for name, (tx_dir, rx_dir) in pointings:
                 fast[name].append(received_gain(light, tx_dir, rx_dir, optics).double().cpu())
                 gain, se = standard_error(result, tx_dir, rx_dir, optics)
                 reference[name].append(gain.double().cpu())

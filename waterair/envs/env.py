@@ -198,6 +198,12 @@ class WaterAirEnv(EnvBase):
             current = self.tilt
         return ((target - current.to(self.float_dtype)) / self.constants.slew_step).clamp(-1.0, 1.0)
 
+    def unconverged_links(self) -> torch.Tensor:
+        """Which links ``[B]`` (bool) the next step's fixed-iteration path solve would leave unconverged,
+        from the present state (the solver's statistics: docs/benchmarks.md)."""
+        state = self._full_state()
+        return ~kernel.solve(self.constants, state, state["time"] + self.config.dt).converged
+
     # --- internals --------------------------------------------------------------------------
 
     def _make_specs(self) -> None:

@@ -17,5 +17,4 @@ def link_budget(values: Mapping | None, env: EnvConfig) -> LinkBudget:
     ``values`` None (a run saved before the link group existed) gives the defaults: the APD by day.
     Errors are one line naming ``link.<key>``.
     """
-    optics = env.transceiver()
-    return LinkBudget.from_mapping(dict(values or {}), optics=optics, aperture_diameter=optics.aperture_diameter)
+    return LinkBudget.from_mapping(dict(values or {}), optics=env.transceiver())

@@ -80,6 +80,7 @@ def _link_summary(result: Evaluation) -> dict:
     link = result.link
     receiver = dataclasses.asdict(link.receiver)
     own = {k: v for k, v in vars(link).items() if k not in ("receiver", "optics")}
+    own["aperture_diameter"] = link.optics.aperture_diameter
     derived = {
         "received_power_per_gain": link.received_power_per_gain,
         "background_power": link.background_power,

@@ -31,8 +31,6 @@ BOLTZMANN = 1.380649e-23
 """k_B (J/K), exact in the SI since 2019."""
 FEC_LIMIT = 3.8e-3
 """Pre-FEC BER that a 7 % overhead hard-decision FEC corrects (ITU-T G.975.1, App. I.9), docs/model.md §9."""
-APERTURE_DIAMETER = 0.05
-"""Default receiver aperture diameter D (m); callers pass the channel's own (docs/model.md §9)."""
 
 
 def _checked(owner, name: str, low: float, high: float, **kwargs) -> None:
@@ -96,8 +94,8 @@ class LinkBudget:
         filter_transmittance: optical filter transmittance T_f, in (0, 1].
         background_radiance: radiance L_b the receiver sees (W/(m² sr nm)), in [0, 1e4].
         receiver: the photodiode and front end.
-        optics: the channel's transceiver (wavelength λ, divergence ω_D, half FOV ω_A, n_c).
-        aperture_diameter: receiver aperture diameter D (m), in (0, 10]: the channel's.
+        optics: the channel's transceiver (wavelength λ, divergence ω_D, half FOV ω_A, n_c and the
+            receiver's aperture diameter D, validated there).
     """
 
     power_w: float = 0.05
@@ -109,7 +107,6 @@ class LinkBudget:
     background_radiance: float = BACKGROUND_RADIANCE["day"]
     receiver: Receiver = field(default_factory=Receiver)
     optics: Transceiver = field(default_factory=Transceiver)
-    aperture_diameter: float = APERTURE_DIAMETER
 
     def __post_init__(self) -> None:
         _checked(self, "power_w", 0.0, 1.0e3, low_open=True, unit="W")
@@ -120,18 +117,15 @@ class LinkBudget:
         _checked(self, "filter_bandwidth_nm", 0.0, 1.0e3, low_open=True, unit="nm")
         _checked(self, "filter_transmittance", 0.0, 1.0, low_open=True)
         _checked(self, "background_radiance", 0.0, 1.0e4, unit="W/(m² sr nm)")
-        _checked(self, "aperture_diameter", 0.0, 10.0, low_open=True, unit="m")
 
     @classmethod
-    def from_mapping(
-        cls, values: Mapping, optics: Transceiver | None = None, aperture_diameter: float = APERTURE_DIAMETER
-    ) -> LinkBudget:
+    def from_mapping(cls, values: Mapping, optics: Transceiver | None = None) -> LinkBudget:
         """Build from the flat ``link`` config group; every error names ``link.<key>``, unknown keys too.
 
-        The optics and the aperture are the channel's (the ``env`` group's), never the link's own.
+        The optics, the aperture among them, are the channel's (the ``env`` group's), never the link's own.
         """
         receiver_keys = {f.name for f in dataclasses.fields(Receiver)}
-        own_keys = {f.name for f in dataclasses.fields(cls)} - {"receiver", "optics", "aperture_diameter"}
+        own_keys = {f.name for f in dataclasses.fields(cls)} - {"receiver", "optics"}
         unknown = sorted(set(values) - receiver_keys - own_keys)
         if unknown:
             allowed = ", ".join(sorted(receiver_keys | own_keys))
@@ -139,7 +133,7 @@ class LinkBudget:
         try:
             receiver = Receiver(**{k: v for k, v in values.items() if k in receiver_keys})
             own = {k: v for k, v in values.items() if k in own_keys}
-            return cls(**own, receiver=receiver, optics=optics or Transceiver(), aperture_diameter=aperture_diameter)
+            return cls(**own, receiver=receiver, optics=optics or Transceiver())
         except ValueError as error:
             raise ValueError(f"link.{error}") from None
 
@@ -151,7 +145,7 @@ class LinkBudget:
     @property
     def detector_area(self) -> float:
         """A_det (m²), eq. (9.3)."""
-        return detector_area(self.aperture_diameter, self.optics.half_fov, self.optics.concentrator_index)
+        return detector_area(self.optics.aperture_diameter, self.optics.half_fov, self.optics.concentrator_index)
 
     @property
     def received_power_per_gain(self) -> float:
@@ -166,7 +160,7 @@ class LinkBudget:
             self.background_radiance,
             self.filter_bandwidth_nm,
             self.filter_transmittance,
-            self.aperture_diameter,
+            self.optics.aperture_diameter,
             self.optics.half_fov,
         )
 

@@ -21,6 +21,7 @@ from waterair.physics.channel.lattice import LATTICE_NODES, LATTICE_SPAN, TwoSca
 from waterair.physics.channel.light import (
     LightSamples,
     Reception,
+    brightest,
     light_centroid,
     pointed_gains,
     receive,
@@ -56,6 +57,7 @@ __all__ = [
     "SinglePath",
     "Transceiver",
     "TwoScale",
+    "brightest",
     "calm_sea_gain",
     "calm_sea_gains",
     "calm_sea_reference",

@@ -128,12 +128,17 @@ def upper_bound(
         _direction(weight, light.departure, light.departure[:, 0]),
         _direction(weight, -light.arrival, -light.arrival[:, 0]),
     )
-    brightest = weight.argmax(-1, keepdim=True).unsqueeze(-1).expand(-1, 1, 3)
-    single = light.departure.gather(1, brightest)[:, 0], -light.arrival.gather(1, brightest)[:, 0]
-    results = [_ascend(light, tx, rx, optics, iterations) for tx, rx in (mean, single)]
+    results = [_ascend(light, tx, rx, optics, iterations) for tx, rx in (mean, brightest(light))]
     (gain_a, tx_a, rx_a), (gain_b, tx_b, rx_b) = results
     better = (gain_b > gain_a).unsqueeze(-1)
     return torch.maximum(gain_a, gain_b), torch.where(better, tx_b, tx_a), torch.where(better, rx_b, rx_a)
+
+
+def brightest(light: LightSamples) -> tuple[torch.Tensor, torch.Tensor]:
+    """The pointings along each link's brightest sample: transmitter direction (up) and receiver boresight
+    (down), ``[B, 3]`` each."""
+    index = light.weight.argmax(-1, keepdim=True).unsqueeze(-1).expand(-1, 1, 3)
+    return light.departure.gather(1, index)[:, 0], -light.arrival.gather(1, index)[:, 0]
 
 
 def light_centroid(

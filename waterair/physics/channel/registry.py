@@ -39,9 +39,13 @@ def channel_model(
     does not carry unresolved slopes. Every setting is validated whichever model is chosen; an error
     names the setting by its keyword here (``lattice_nodes = 4 is not allowed; …``)."""
     check_choice("channel", name, CHANNELS)
-    lattice = _build(TwoScale, {"nodes": ("lattice_nodes", lattice_nodes), "span": ("lattice_span", lattice_span)}, optics)
+    lattice = _build(
+        TwoScale, {"nodes": ("lattice_nodes", lattice_nodes), "span": ("lattice_span", lattice_span)}, optics
+    )
     tracer = _build(
-        MonteCarlo, {"rays": ("montecarlo_rays", montecarlo_rays), "facets": ("montecarlo_facets", montecarlo_facets)}, optics
+        MonteCarlo,
+        {"rays": ("montecarlo_rays", montecarlo_rays), "facets": ("montecarlo_facets", montecarlo_facets)},
+        optics,
     )
     if name == "single_path":
         return SinglePath(optics)

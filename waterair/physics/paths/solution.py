@@ -15,7 +15,6 @@ from tensordict import TensorClass
 
 from waterair.physics.optics import N_AIR, N_WATER, angle_between, critical_angle
 
-
 TRACK_LEASH = 3.0
 """How far (m) a tracked refraction point may stray from the calm-sea point and still be followed where
 the exact point is not needed: the light comes from within a metre or so of it at any wind (docs/model.md §4.3)."""

@@ -1,4 +1,5 @@
-"""Link geometry, channel gain, upper bound and calm-sea reference (docs/model.md §0, §4)."""
+"""The paper's channel (docs/model.md §0, §4.1): link geometry, the gain, the SinglePath model's one ray
+and its bound, the calm-sea reference."""
 
 import math
 
@@ -7,8 +8,16 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from waterair.physics.channel import LinkGeometry, Transceiver, calm_sea_gain, channel_gain, gain_upper_bound, pointing
-from waterair.physics.paths import solve_path
+from waterair.physics.channel import (
+    LinkEnds,
+    LinkGeometry,
+    SinglePath,
+    Transceiver,
+    calm_sea_gain,
+    channel_gain,
+    pointing,
+)
+from waterair.physics.paths import flat_sea_point, solve_path
 from waterair.physics.sea import SeaState
 from waterair.physics.surface import WaveSurface
 
@@ -34,12 +43,41 @@ def aligned_and_random(batch=256, seed=0):
     return solve_path(surface, tx, rx, 2.0)
 
 
+def received(path, tx_dir, rx_dir, optics=None):
+    """The SinglePath model's reception of ``path`` for pointings ``[B, 3]``."""
+    model = SinglePath(optics or Transceiver())
+    tx, rx = LinkGeometry().positions(torch.float64)
+    tx, rx = tx.expand_as(path.point), rx.expand_as(path.point)
+    ends = LinkEnds(tx, rx, flat_sea_point(tx, rx))
+    light = model.light(None, path, ends, torch.zeros(path.point.shape[0], dtype=torch.float64), {})
+    return model.receive(light, tx_dir, rx_dir)
+
+
 def test_aligned_pointing_reaches_the_upper_bound():
     path = aligned_and_random()
     optics = Transceiver()
     gain = channel_gain(path, path.departure, -path.arrival, optics)
-    torch.testing.assert_close(gain.gain, gain_upper_bound(path, optics))
+    reception = received(path, path.departure, -path.arrival)
+    torch.testing.assert_close(gain.gain, reception.upper_bound)
     assert torch.all(gain.departure[path.valid] == 1.0)
+    # the best pointing is the path, and the bound is the paper's G_UB = G_p G_ref n_c² / sin² ω_A
+    assert torch.equal(reception.departure, path.departure) and torch.equal(reception.arrival, path.arrival)
+    peak = optics.concentrator_index**2 / math.sin(optics.half_fov) ** 2
+    torch.testing.assert_close(reception.upper_bound, gain.path * gain.refraction * peak, rtol=1e-15, atol=0)
+
+
+def test_the_single_path_model_is_the_papers_gain_bit_for_bit():
+    """One ray weighted G_p G_ref, read through the shared readout, is eq. (1) to the last bit."""
+    path = aligned_and_random(batch=64, seed=3)
+    tilt = 0.3 * torch.randn(64, 4, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    tx_dir, rx_dir = pointing(tilt[:, :2], up=True), pointing(tilt[:, 2:], up=False)
+    gain = channel_gain(path, tx_dir, rx_dir, Transceiver())
+    reception = received(path, tx_dir, rx_dir)
+    assert gain.gain.max() > 0
+    assert torch.equal(reception.gain, gain.gain)
+    assert torch.equal(reception.alpha_d, gain.alpha_d) and torch.equal(reception.alpha_a, gain.alpha_a)
+    # the detector reads the path's arrival wherever it falls within the field of view, lit or not
+    assert torch.equal(reception.lit, gain.arrival > 0) and torch.equal(reception.spot_arrival, path.arrival)
 
 
 @settings(max_examples=30, deadline=None)
@@ -53,7 +91,7 @@ def test_upper_bound_dominates_any_pointing(tilts, seed):
     tx_dir, rx_dir = pointing(tilt[:, :2], up=True), pointing(tilt[:, 2:], up=False)
     optics = Transceiver()
     gain = channel_gain(path, tx_dir, rx_dir, optics)
-    assert torch.all(gain.gain <= gain_upper_bound(path, optics) * (1 + 1e-12))
+    assert torch.all(gain.gain <= received(path, tx_dir, rx_dir, optics).upper_bound * (1 + 1e-12))
     assert torch.all(torch.isfinite(gain.gain)) and torch.all(gain.gain >= 0)
 
 
@@ -61,7 +99,8 @@ def test_invalid_paths_have_zero_gain():
     path = aligned_and_random(batch=8)
     path.valid[:] = False
     optics = Transceiver()
-    assert torch.all(gain_upper_bound(path, optics) == 0)
+    reception = received(path, path.departure, -path.arrival, optics)
+    assert torch.all(reception.upper_bound == 0) and not reception.valid.any()
     assert torch.all(channel_gain(path, path.departure, -path.arrival, optics).gain == 0)
 
 
