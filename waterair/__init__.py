@@ -2,12 +2,12 @@
 
 The physics layer can be used on its own (no TorchRL needed)::
 
-    import torch
-    from waterair import SeaState, WaveSurface, LinkGeometry, Transceiver, solve_path, channel_gain
+    from waterair import SeaState, WaveSurface, LinkGeometry, Transceiver, solve_path, channel_model
 
     surface = WaveSurface.sample(SeaState(wind=12.0), batch_size=1024, seed=0)
     tx, rx = LinkGeometry().positions()
     path = solve_path(surface, tx, rx, t=0.0)
+    model = channel_model("full", Transceiver(), two_scale_sea=False)   # README, "A short tour"
 """
 
 from waterair import physics

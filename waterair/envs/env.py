@@ -11,7 +11,7 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from waterair.core.devices import resolve_device
-from waterair.envs import kernel
+from waterair.envs import draws, kernel
 from waterair.envs.config import EnvConfig
 from waterair.envs.frames import FrameStack
 from waterair.envs.kernel import MEASUREMENT_KEYS, SURFACE_KEYS, StepConstants
@@ -298,10 +298,8 @@ class WaterAirEnv(EnvBase):
     def _reset_rows(self, rows: torch.Tensor) -> None:
         """New seas, geometry, pointing and a cold path solve for ``rows`` (``[n]`` indices)."""
         config, dtype, state = self.config, self.float_dtype, self.state
-        # Replicas share their random draws: draw once per distinct link, then copy to each replica.
-        distinct, copy = torch.unique(rows % (config.num_envs // config.replicas), return_inverse=True)
-        wind = self._per_link(config.wind_range, config.wind_values, None, distinct)
-        direction = self._per_link(config.wind_direction_range, config.wind_direction_values, None, distinct)
+        distinct, copy = draws.distinct_links(config, rows)
+        wind, direction = draws.sea_conditions(config, distinct, self._generator)
         surface = WaveSurface.sample(
             self.sea,
             distinct.numel(),
@@ -312,9 +310,8 @@ class WaterAirEnv(EnvBase):
             wind_direction_deg=direction,
         )
         self.surface[rows] = surface[copy.to(self.device)] if config.replicas > 1 else surface
-        offset = self._per_link(config.offset_range, config.offset_values, config.offset_ratio, distinct)[copy.cpu()]
-        azimuth = self._per_link(config.offset_azimuth_range, config.offset_azimuth_values, None, distinct)
-        azimuth = None if azimuth is None else azimuth[copy.cpu()]
+        offset, azimuth = draws.geometry(config, distinct, self._generator)
+        offset, azimuth = offset[copy.cpu()], None if azimuth is None else azimuth[copy.cpu()]
         tx, rx = (v.to(self.device, dtype) for v in self.link.positions_for(offset, azimuth))
         reference = self.channel.reference_gain(tx.double(), rx.double()).to(dtype)
         prepared = self.channel.prepare(tx, rx, self.surface.unresolved[rows])
@@ -361,16 +358,6 @@ class WaterAirEnv(EnvBase):
             state[key][rows] = value
         for key, value in measurement.items():
             self.measurement[key][rows] = value
-
-    def _per_link(self, bounds, values, default, rows: torch.Tensor) -> torch.Tensor | None:
-        """float64 ``[n]`` values for ``rows``: drawn from ``bounds``, cycled from ``values``, or ``default``."""
-        count = rows.numel()
-        if bounds is not None:
-            low, high = bounds
-            return low + (high - low) * torch.rand(count, generator=self._generator, dtype=torch.float64)
-        if values is not None:
-            return torch.tensor(values, dtype=torch.float64)[rows.cpu() % len(values)]
-        return None if default is None else torch.full((count,), default, dtype=torch.float64)
 
     def _output(self, observation: torch.Tensor, reset: torch.Tensor | None = None) -> TensorDict:
         """The step's TensorDict, with the observation's parts of this layout (of all parts), stacked

@@ -21,6 +21,8 @@ from omegaconf import DictConfig, OmegaConf
 from tensordict.nn import TensorDictModuleBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
+from waterair.core.compiling import CHOICES as COMPILE_CHOICES
+from waterair.core.compiling import compiling_pays
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.baselines import BASELINES
@@ -128,7 +130,10 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
     scenarios = scenarios_from_config(cfg)
     bootstrap = Bootstrap(**OmegaConf.to_container(cfg.bootstrap, resolve=True))
     resolve_device(cfg.device)
-    base = EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
+    values = OmegaConf.to_container(cfg.env, resolve=True)
+    compile_kernel = str(values.get("compile_kernel", "auto")).lower()
+    check_choice("env.compile_kernel", compile_kernel, COMPILE_CHOICES)
+    base = EnvConfig.from_mapping({**values, "compile_kernel": compile_kernel == "true"})
     device = resolve_device(base.device, "env.device")
     base = base.replace(device=str(device))  # reports name the device that ran, not "auto"
     link = link_budget(OmegaConf.to_container(cfg.link, resolve=True), base)
@@ -144,6 +149,10 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
             raise ValueError(f"labels has {len(labels)} entries for {len(sources)} checkpoints")
         policies = [load_policy(p, labels[i] if labels else None) for i, p in enumerate(sources)]
     _unique_labels(policies)
+    if compile_kernel == "auto":  # every policy, baseline and the bound roll out every scenario's points
+        rollouts = len(policies) + len(baselines) + 1
+        frames = rollouts * sum(len(s.points) * s.realisations * s.steps for s in scenarios)
+        base = base.replace(compile_kernel=compiling_pays(frames)[0])
     sensing = cfg.get("sensing", "trained")
     check_choice("sensing", sensing, SENSING)
     learned = []

@@ -1,26 +1,16 @@
 """Whether a run compiles its environment step and its update: ``env.compile_kernel`` and ``compile_update``.
 
-Each is true, false or ``auto``. Compiling pays only when the frames still to collect save more
-time than the compiles cost, and what they cost depends on torch's compile cache
-(``TORCHINDUCTOR_CACHE_DIR``, per machine by default, per sweep on Slurm): measured on the 2-core
-development machine (docs/benchmarks.md, "Training"), the default configuration's step and update
-take about 100 s to compile into an empty cache and 9–20 s out of a warm one, and then save
-0.33 ms per frame (2,568 frames/s compiled, 1,380 eager). ``auto`` compiles from
-:data:`MIN_FRAMES` frames on, taking the cache as warm when it holds compiled graphs.
+Each is true, false or ``auto`` (:mod:`waterair.core.compiling` says when compiling pays).
 """
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 from omegaconf import DictConfig, OmegaConf
 
+from waterair.core.compiling import CHOICES, MIN_FRAMES, cache_state, compiling_pays
 from waterair.core.validation import check_choice
 
-CHOICES = ("auto", "true", "false")
-MIN_FRAMES = {"warm": 50_000, "cold": 300_000}
-"""Frames from which compiling saves time: the compile time over the time it saves per frame."""
+__all__ = ["CHOICES", "MIN_FRAMES", "cache_state", "compile_plan"]
 
 
 def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -> tuple[DictConfig, str]:
@@ -35,23 +25,11 @@ def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -
     decided = {key: str(value).lower() == "true" for key, value in settings.items()}
     reason = "as configured"
     if automatic:
-        cache = cache or cache_state()
-        pays = frames_to_go >= MIN_FRAMES[cache]
+        pays, reason = compiling_pays(frames_to_go, cache)
         decided.update({key: pays for key in automatic})
-        sign = "≥" if pays else "<"
-        reason = f"auto: {frames_to_go:,} frames to go {sign} {MIN_FRAMES[cache]:,} with torch's compile cache {cache}"
     plan = OmegaConf.merge(
         cfg, {"env": {"compile_kernel": decided["env.compile_kernel"]}, "compile_update": decided["compile_update"]}
     )
     parts = [f"{'compiled' if decided[key] else 'eager'} {name}" for key, name in
              (("env.compile_kernel", "environment step"), ("compile_update", "update"))]  # fmt: skip
     return plan, f"{', '.join(parts)} ({reason})"
-
-
-def cache_state() -> str:
-    """``warm`` if torch's compile cache holds compiled graphs (of any program), else ``cold``."""
-    # The folder torch would use, found as torch finds it (its cache_dir() would also create it).
-    from torch._inductor.runtime.cache_dir_utils import default_cache_dir
-
-    graphs = Path(os.environ.get("TORCHINDUCTOR_CACHE_DIR") or default_cache_dir()) / "fxgraph"
-    return "warm" if graphs.is_dir() and any(graphs.iterdir()) else "cold"
