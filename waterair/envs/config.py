@@ -160,11 +160,7 @@ class EnvConfig:
                 f"env.replicas = {self.replicas} is not allowed; it must divide env.num_envs = {self.num_envs}"
             )
         check_choice("env.solver", self.solver, ENV_SOLVERS)
-        for build in (self.sea, self.link, self.transceiver, self.channel_model):
-            try:
-                build()
-            except ValueError as error:
-                raise ValueError(f"env.{error}") from None
+        self._physics  # noqa: B018  (the physics objects validate the physics keys, once)
         if self.channel != "single_path" and self.solver == "centroid":
             raise ValueError(
                 f"env.solver = 'centroid' only works with env.channel = 'single_path' (got {self.channel!r}); "
@@ -213,6 +209,39 @@ class EnvConfig:
         return EnvConfig.from_mapping({**{f.name: getattr(self, f.name) for f in dataclasses.fields(self)}, **changes})
 
     def sea(self) -> SeaState:
+        """The sea these keys describe (built and validated once per config)."""
+        return self._physics["sea"]
+
+    def link(self) -> LinkGeometry:
+        """Where the ends are (built and validated once per config)."""
+        return self._physics["link"]
+
+    def transceiver(self) -> Transceiver:
+        """The ends' optics (built and validated once per config)."""
+        return self._physics["optics"]
+
+    def channel_model(self) -> ChannelModel:
+        """The channel model ``channel`` names, for this sea and these optics (docs/environment.md, "Channel")."""
+        return self._physics["channel"]
+
+    @functools.cached_property
+    def _physics(self) -> dict:
+        """The physics objects of these keys, each validated where it is defined; errors name ``env.<key>``."""
+        built: dict = {}
+        steps = (
+            ("sea", self._sea),
+            ("link", self._link),
+            ("optics", self._transceiver),
+            ("channel", lambda: self._channel(built["optics"], built["sea"])),
+        )
+        for name, build in steps:
+            try:
+                built[name] = build()
+            except ValueError as error:
+                raise ValueError(f"env.{error}") from None
+        return built
+
+    def _sea(self) -> SeaState:
         return SeaState(
             wind=self.wind,
             fetch=self.fetch,
@@ -226,7 +255,7 @@ class EnvConfig:
             wavenumber_cutoff=self.wavenumber_cutoff,
         )
 
-    def link(self) -> LinkGeometry:
+    def _link(self) -> LinkGeometry:
         return LinkGeometry(
             tx_depth=self.tx_depth,
             rx_height=self.rx_height,
@@ -234,7 +263,7 @@ class EnvConfig:
             offset_azimuth_deg=self.offset_azimuth_deg,
         )
 
-    def transceiver(self) -> Transceiver:
+    def _transceiver(self) -> Transceiver:
         return Transceiver(
             wavelength=self.wavelength,
             divergence=self.divergence,
@@ -244,12 +273,11 @@ class EnvConfig:
             aperture_diameter=self.aperture_diameter,
         )
 
-    def channel_model(self) -> ChannelModel:
-        """The channel model ``channel`` names, for this sea and these optics (docs/environment.md, "Channel")."""
+    def _channel(self, optics: Transceiver, sea: SeaState) -> ChannelModel:
         return channel_model(
             self.channel,
-            self.transceiver(),
-            self.sea().two_scale,
+            optics,
+            sea.two_scale,
             lattice_nodes=self.lattice_nodes,
             lattice_span=self.lattice_span,
             montecarlo_rays=self.montecarlo_rays,
