@@ -150,8 +150,7 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
         policies = [load_policy(p, labels[i] if labels else None) for i, p in enumerate(sources)]
     _unique_labels(policies)
     if compile_kernel == "auto":  # every policy, baseline and the bound roll out every scenario's points
-        rollouts = len(policies) + len(baselines) + 1
-        frames = rollouts * sum(len(s.points) * s.realisations * s.steps for s in scenarios)
+        frames = (len(policies) + len(baselines) + 1) * sum(len(s.points) * s.realisations * s.steps for s in scenarios)
         base = base.replace(compile_kernel=compiling_pays(frames)[0])
     sensing = cfg.get("sensing", "trained")
     check_choice("sensing", sensing, SENSING)
