@@ -5,7 +5,7 @@ from conftest import F64, ends
 from test_channel_two_scale import two_scale
 
 from waterair.physics.channel import Transceiver, pointing, received_gain, upper_bound
-from waterair.physics.sea import SeaState
+from waterair.physics.sea import sea_state
 from waterair.physics.surface import WaveSurface
 
 OPTICS = Transceiver()
@@ -14,7 +14,7 @@ OPTICS = Transceiver()
 def test_upper_bound_is_within_one_percent_of_a_brute_force_search():
     """Over a 4-D grid of pointings around the bound's own (±1.5 ω_D, ±0.1 rad), nothing beats the
     bound by more than 1 %, and the bound's pointings give the bound."""
-    surface = WaveSurface.sample(SeaState(wind=20.0, spectrum="elfouhaily", n_dir=16), 8, seed=2, dtype=F64)
+    surface = WaveSurface.sample(sea_state(wind=20.0, spectrum="elfouhaily", n_dir=16), 8, seed=2, dtype=F64)
     tx, rx = ends(0.5, 8)
     light = two_scale(surface, tx, rx, 4.0, OPTICS)
     bound, best_tx, best_rx = upper_bound(light, OPTICS)

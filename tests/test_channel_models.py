@@ -18,7 +18,7 @@ from waterair.physics.channel import (
 )
 from waterair.physics.optics import unit_vector
 from waterair.physics.paths import flat_sea_point, solve_path
-from waterair.physics.sea import SeaState
+from waterair.physics.sea import sea_state
 from waterair.physics.surface import WaveSurface
 
 OPTICS = Transceiver()
@@ -61,7 +61,9 @@ def test_every_setting_is_checked_whichever_model_is_chosen_and_named_by_its_key
 
 
 def test_an_unknown_channel_is_a_one_line_error():
-    with pytest.raises(ValueError, match=r"^channel = 'exact' is not allowed; choose one of single_path, full, montecarlo$"):
+    with pytest.raises(
+        ValueError, match=r"^channel = 'exact' is not allowed; choose one of single_path, full, montecarlo$"
+    ):
         channel_model("exact", OPTICS, False)
 
 
@@ -72,7 +74,7 @@ def test_an_unknown_channel_is_a_one_line_error():
 def test_on_a_calm_sea_aligned_ends_receive_the_reference_gain(model, offset):
     """G / G_0 = 1 along the calm-sea path, for every model that compiles (the tracer has its own test):
     exactly for the one-path models, within 0.5 % for the lattice (the aperture's blur on a trapezoid rule)."""
-    sea = SeaState(wind=12.0, spectrum="elfouhaily", n_wavenumbers=8, n_dir=4) if model.prepared_keys else SeaState()
+    sea = sea_state(wind=12.0, spectrum="elfouhaily", n_wavenumbers=8, n_dir=4) if model.prepared_keys else sea_state()
     surface = calm(WaveSurface.sample(sea, 2, seed=0, dtype=F64))
     tx, rx = ends(offset, 2)
     point = flat_sea_point(tx, rx, OPTICS.n_water, OPTICS.n_air)

@@ -7,7 +7,7 @@ from conftest import F64, ends
 
 from waterair.physics.channel import LightSamples, LinkEnds, Transceiver, TwoScale, flat_sea_irradiance
 from waterair.physics.paths import flat_sea_point, solve_path
-from waterair.physics.sea import SeaState
+from waterair.physics.sea import sea_state
 from waterair.physics.surface import WaveSurface
 
 
@@ -26,7 +26,7 @@ def test_the_surface_moves_light_and_does_not_create_it(wind):
     """A beam wide enough to cover the receiver's plane (ω_D = 0.3 rad, no angular gains): the
     irradiance averaged over 256 ocean seas × 3 times equals the calm sea's within 2 %."""
     optics = Transceiver(divergence=0.3)
-    surface = WaveSurface.sample(SeaState(wind=wind, spectrum="elfouhaily", n_dir=16), 256, seed=3, dtype=F64)
+    surface = WaveSurface.sample(sea_state(wind=wind, spectrum="elfouhaily", n_dir=16), 256, seed=3, dtype=F64)
     tx, rx = ends(0.1, 256)
     total = torch.cat([two_scale(surface, tx, rx, t, optics).weight.sum(-1) for t in (0.0, 3.0, 7.0)])
     ratio = (total.mean() / flat_sea_irradiance(tx, rx, optics)[0]).item()

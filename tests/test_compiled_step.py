@@ -13,7 +13,7 @@ import torch
 from tests.conftest import preset_config
 from waterair.envs.env import WaterAirEnv
 from waterair.physics.paths import FixedNewtonOptions, solve_path
-from waterair.physics.sea import SeaState
+from waterair.physics.sea import sea_state
 from waterair.physics.surface import WaveSurface
 
 STEPS = 200
@@ -52,7 +52,7 @@ def test_compiled_and_eager_steps_agree_over_200_steps(observation, batch):
 def test_fixed_iteration_paths_obey_snell_and_match_the_adaptive_solver(dtype, bound, default_positions):
     """The fixed-iteration solver, compiled, from cold starts (most links need the finishing stages)."""
     tx, rx = (v.to(dtype) for v in default_positions)
-    surface = WaveSurface.sample(SeaState(wind=12.0), 1024, seed=3, dtype=dtype)
+    surface = WaveSurface.sample(sea_state(wind=12.0), 1024, seed=3, dtype=dtype)
     adaptive = solve_path(surface, tx, rx, 4.0)
     fixed = solve_path(surface, tx, rx, 4.0, method="newton_fixed", compiled=True)
     assert fixed.valid.float().mean().item() >= 0.99
@@ -70,7 +70,7 @@ def test_fixed_iteration_paths_obey_snell_and_match_the_adaptive_solver(dtype, b
 
 def test_fixed_iteration_solver_without_finishing_flags_unconverged_links_invalid(default_positions):
     tx, rx = default_positions
-    surface = WaveSurface.sample(SeaState(wind=12.0), 64, seed=7, dtype=torch.float64)
+    surface = WaveSurface.sample(sea_state(wind=12.0), 64, seed=7, dtype=torch.float64)
     options = FixedNewtonOptions(iterations=1, finish=False)
     path = solve_path(surface, tx, rx, 0.0, method="newton_fixed", options=options)
     finished = solve_path(surface, tx, rx, 0.0, method="newton_fixed", options=FixedNewtonOptions(iterations=1))

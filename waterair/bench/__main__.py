@@ -45,7 +45,7 @@ from waterair.bench.summary import main as summary
 from waterair.bench.training import bench_training, training_table
 from waterair.core.devices import resolve_device
 from waterair.core.files import atomic_write_json
-from waterair.physics import SeaState
+from waterair.physics import sea_state
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         device = resolve_device(getattr(args, "device", "cpu"))
-        sea = SeaState(wind=args.wind) if args.suite == "physics" else None
+        sea = sea_state(wind=args.wind) if args.suite == "physics" else None
     except ValueError as error:
         parser.exit(2, f"error: {error}\n")
     if args.suite == "training":

@@ -14,7 +14,7 @@ import time
 
 import torch
 
-from waterair.physics import LinkGeometry, SeaState, Transceiver, WaveSurface, flat_sea_point
+from waterair.physics import LinkGeometry, Transceiver, WaveSurface, flat_sea_point, sea_state
 from waterair.physics.channel import ray_tube_factor
 from waterair.physics.optics import arrival_gain, departure_gain, fresnel_transmittance, path_gain, unit_vector
 from waterair.physics.paths.census import refraction_points
@@ -35,7 +35,7 @@ def bench_census(
     rows = []
     for cutoff in cutoffs:
         for wind in winds:
-            sea = SeaState(wind=wind, spectrum="elfouhaily", n_dir=16, wavenumber_cutoff=cutoff)
+            sea = sea_state(wind=wind, spectrum="elfouhaily", n_dir=16, wavenumber_cutoff=cutoff)
             step = spacing or min(0.08, 0.25 * 2 * math.pi / float(sea.resolved_cutoff()))
             surface = WaveSurface.sample(sea, links, seed=0, dtype=torch.float64)
             for offset in offsets:

@@ -16,7 +16,7 @@ import time
 
 import torch
 
-from waterair.physics import LinkGeometry, SeaState, Transceiver, WaveSurface, flat_sea_point, solve_path
+from waterair.physics import LinkGeometry, Transceiver, WaveSurface, flat_sea_point, sea_state, solve_path
 from waterair.physics.channel import LinkEnds, MonteCarlo, TwoScale, brightest, received_gain, standard_error
 from waterair.physics.optics import unit_vector
 
@@ -35,7 +35,7 @@ def bench_montecarlo(
     tracer = MonteCarlo(optics, rays=rays, facets=facets, proposal_beams=PROPOSAL_BEAMS)
     rows, speeds = [], []
     for wind in winds:
-        sea = SeaState(wind=wind, spectrum="elfouhaily", n_dir=16)
+        sea = sea_state(wind=wind, spectrum="elfouhaily", n_dir=16)
         surface = WaveSurface.sample(sea, seas, seed=0, dtype=dtype, device=device)
         tx, rx = (v.to(device).expand(seas, 3).contiguous() for v in LinkGeometry(offset_ratio=offset).positions(dtype))
         flat = flat_sea_point(tx, rx, optics.n_water, optics.n_air)

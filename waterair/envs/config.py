@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.physics.channel import ChannelModel, LinkGeometry, Transceiver, channel_model
-from waterair.physics.sea import SeaState
+from waterair.physics.sea import SPECTRA, SeaState, sea_state
 
 ACTION_MODES = ("absolute", "delta", "residual")
 RESIDUAL_BASES = ("flat_snell", "aoa_tracker")
@@ -242,18 +242,16 @@ class EnvConfig:
         return built
 
     def _sea(self) -> SeaState:
-        return SeaState(
-            wind=self.wind,
-            fetch=self.fetch,
-            gamma=self.gamma,
-            n_freq=self.n_freq,
-            n_dir=self.n_dir,
-            wind_direction_deg=self.wind_direction_deg,
-            amplitude=self.amplitude,
-            spectrum=self.spectrum,
-            n_wavenumbers=self.n_wavenumbers,
-            wavenumber_cutoff=self.wavenumber_cutoff,
-        )
+        """The sea ``spectrum`` names, from the keys it has (a JONSWAP sea reads no wavenumber keys, and so on)."""
+        if self.spectrum not in SPECTRA:
+            return sea_state(self.spectrum)  # refuses the name
+        shared = {field.name for field in dataclasses.fields(SeaState)}
+        for name, kind in SPECTRA.items():  # the other seas' own keys are checked too, never read
+            own = {field.name for field in dataclasses.fields(kind)} - shared
+            if name != self.spectrum:
+                kind.check_own_keys(**{key: getattr(self, key) for key in own})  # type: ignore[attr-defined]
+        keys = {field.name for field in dataclasses.fields(SPECTRA[self.spectrum])} - {"flat"}
+        return sea_state(self.spectrum, **{key: getattr(self, key) for key in keys})
 
     def _link(self) -> LinkGeometry:
         return LinkGeometry(

@@ -15,14 +15,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import torch  # noqa: E402
 
-from waterair.physics.sea import SeaState, spreading  # noqa: E402
+from waterair.physics.sea import JonswapSea, spreading  # noqa: E402
 from waterair.physics.surface import WaveSurface  # noqa: E402
 
 POINTS_PER_CHUNK = 2048
 """Surface points evaluated at once when drawing a snapshot (bounds memory at P × K floats)."""
 
 
-def plot_spectrum(sea: SeaState, path: Path) -> Path:
+def plot_spectrum(sea: JonswapSea, path: Path) -> Path:
     """S(ω) against ω with the peak ω_p and the simulated band marked (paper Fig. 2a)."""
     omega = torch.linspace(0.05, 4.0 * sea.omega_p, 800, dtype=torch.float64)
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -41,7 +41,7 @@ def plot_spectrum(sea: SeaState, path: Path) -> Path:
     return _save(fig, path)
 
 
-def plot_directional_spectrum(sea: SeaState, path: Path) -> Path:
+def plot_directional_spectrum(sea: JonswapSea, path: Path) -> Path:
     """S(ω, θ) = S(ω) G(ω, θ) as a 3-D surface (paper Fig. 2b)."""
     omega = torch.linspace(0.3 * sea.omega_p, 3.0 * sea.omega_p, 120, dtype=torch.float64)
     theta = torch.linspace(-math.pi / 2, math.pi / 2, 90, dtype=torch.float64)
@@ -58,7 +58,7 @@ def plot_directional_spectrum(sea: SeaState, path: Path) -> Path:
 
 
 def plot_surface_snapshot(
-    sea: SeaState, path: Path, *, extent: float = 60.0, resolution: int = 120, seed: int = 0
+    sea: JonswapSea, path: Path, *, extent: float = 60.0, resolution: int = 120, seed: int = 0
 ) -> Path:
     """One realisation η(x, y, 0) over an ``extent`` × ``extent`` m square (paper Fig. 3)."""
     surface = WaveSurface.sample(sea, 1, seed=seed)
@@ -82,9 +82,9 @@ def plot_surface_snapshot(
     return _save(fig, path)
 
 
-def physics_figures(out: Path, sea: SeaState | None = None, seed: int = 0) -> list[Path]:
+def physics_figures(out: Path, sea: JonswapSea | None = None, seed: int = 0) -> list[Path]:
     """Write every physics figure into ``out`` and return their paths."""
-    sea = sea or SeaState()
+    sea = sea or JonswapSea()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     return [
@@ -109,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the surface snapshot")
     args = parser.parse_args(argv)
     try:
-        sea = SeaState(wind=args.wind, fetch=args.fetch)
+        sea = JonswapSea(wind=args.wind, fetch=args.fetch)
     except ValueError as error:
         parser.exit(2, f"error: {error}\n")
     for path in physics_figures(args.out, sea, args.seed):

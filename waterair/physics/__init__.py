@@ -30,7 +30,17 @@ from waterair.physics.channel import (
 from waterair.physics.link import LinkBudget, LinkPerformance, Receiver, link_performance
 from waterair.physics.paths import CentroidOptions, NewtonOptions, PathSolution, flat_sea_point, solve_path
 from waterair.physics.paths.census import RefractionPoints, refraction_points
-from waterair.physics.sea import MeanSquareSlope, SeaState, cox_munk, elevation_spectrum, jonswap, spreading
+from waterair.physics.sea import (
+    ElfouhailySea,
+    JonswapSea,
+    MeanSquareSlope,
+    SeaState,
+    cox_munk,
+    elevation_spectrum,
+    jonswap,
+    sea_state,
+    spreading,
+)
 from waterair.physics.surface import Harmonics, SurfaceSample, WaveSurface
 
 __all__ = [
@@ -38,7 +48,9 @@ __all__ = [
     "CentroidOptions",
     "ChannelGain",
     "ChannelModel",
+    "ElfouhailySea",
     "Harmonics",
+    "JonswapSea",
     "LightSamples",
     "LinkEnds",
     "LinkBudget",
@@ -68,6 +80,7 @@ __all__ = [
     "link_performance",
     "pointing",
     "received_gain",
+    "sea_state",
     "refraction_points",
     "solve_path",
     "spreading",

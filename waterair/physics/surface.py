@@ -20,7 +20,7 @@ import torch
 from tensordict import TensorClass
 
 from waterair.core.validation import check_int
-from waterair.physics.sea import GRAVITY, SeaState, angular_frequency
+from waterair.physics.sea import SeaState
 from waterair.physics.sea.slopes import rotated_covariance
 
 
@@ -139,18 +139,12 @@ class WaveSurface(TensorClass):
         draw_device = generator.device
         if wind is not None:
             wind = wind.to(device=draw_device, dtype=torch.float64).expand(batch)
-        n_dir = sea.n_dir
-        jonswap = sea.spectrum == "jonswap"  # bins in frequency (the paper's) or in wavenumber
-        n_bins, bins = (sea.n_freq, sea.frequency_bins) if jonswap else (sea.n_wavenumbers, sea.wavenumber_bins)
-        edges = bins(torch.float64, draw_device, wind).expand(batch, n_bins + 1)
+        n_dir, n_bins = sea.n_dir, sea.n_bins  # bins in frequency (the paper's sea) or in wavenumber
+        edges = sea.bin_edges(torch.float64, draw_device, wind).expand(batch, n_bins + 1)
         width = edges[:, 1:] - edges[:, :-1]
         jitter = torch.rand(batch, n_bins, generator=generator, dtype=torch.float64, device=draw_device)
         drawn = edges[:, :-1] + jitter * width
-        if jonswap:
-            omega, amplitude, wavenumber = drawn, sea.amplitudes(drawn, width, wind), drawn**2 / GRAVITY
-        else:
-            amplitude, wavenumber = sea.wavenumber_amplitudes(drawn, width, wind), drawn
-            omega = angular_frequency(wavenumber)
+        omega, amplitude, wavenumber = sea.harmonics(drawn, width, wind)
         theta, _ = sea.directions(torch.float64, draw_device)
         if wind_direction_deg is None:
             heading = theta + math.radians(sea.wind_direction_deg)

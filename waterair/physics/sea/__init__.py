@@ -1,6 +1,7 @@
 """Sea states: the paper's JONSWAP band and the measured-slope Elfouhaily sea (docs/model.md §1).
 
-:class:`SeaState` is the validated sea and its discretisation; :mod:`.jonswap` and
+:class:`SeaState` is what every sea shares (its discretisation, its slopes); :class:`JonswapSea` and
+:class:`ElfouhailySea` are the two seas, :func:`sea_state` builds one by name; :mod:`.jonswap` and
 :mod:`.elfouhaily` hold one pure function per formula; :mod:`.slopes` the mean square slopes and
 the Cox-Munk fits they are checked against.
 """
@@ -16,14 +17,19 @@ from waterair.physics.sea.elfouhaily import (
     phase_speed,
     spreading_ratio,
 )
+from waterair.physics.sea.elfouhaily_sea import ElfouhailySea
 from waterair.physics.sea.jonswap import GRAVITY, jonswap, jonswap_alpha, jonswap_omega_p, spreading
+from waterair.physics.sea.jonswap_sea import JonswapSea
 from waterair.physics.sea.slopes import CoxMunk, MeanSquareSlope, cox_munk, elfouhaily_slope_variance
-from waterair.physics.sea.state import SPECTRA, SeaState
+from waterair.physics.sea.spectra import SPECTRA, sea_state
+from waterair.physics.sea.state import SeaState
 
 __all__ = [
     "GRAVITY",
     "SPECTRA",
     "CoxMunk",
+    "ElfouhailySea",
+    "JonswapSea",
     "MeanSquareSlope",
     "SeaState",
     "angular_frequency",
@@ -39,6 +45,7 @@ __all__ = [
     "jonswap_omega_p",
     "peak_wavenumber",
     "phase_speed",
+    "sea_state",
     "spreading",
     "spreading_ratio",
 ]
