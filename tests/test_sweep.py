@@ -102,6 +102,8 @@ def test_the_search_and_slurm_options_are_train_pys():
     sweeper, launcher = cfg.hydra.sweeper, OmegaConf.to_container(cfg.hydra.launcher, resolve=True)
     assert sweeper._target_.endswith("SearchSweeper") and sweeper.direction == "maximize"
     assert sweeper.max_failure_rate == 1.0  # a failed job is a failed trial, not the end of the search
+    assert (sweeper.n_trials, sweeper.n_jobs, sweeper.storage, sweeper.study_name) == (20, 2, None, None)
+    assert sweeper.sampler._target_ == "optuna.samplers.TPESampler" and sweeper.sampler.seed is None
     assert launcher["_target_"].endswith("waterair_sweeps.launchers.SlurmLauncher")
     assert (launcher["cpus_per_task"], launcher["mem_gb"], launcher["timeout_min"], launcher["gpus_per_node"]) == (
         1, 4, 60, 1)  # fmt: skip

@@ -37,7 +37,7 @@ PLUGINS = {
     "hydra/launcher=submitit_slurm": "hydra-submitit-launcher",
     "hydra/launcher=submitit_local": "hydra-submitit-launcher",
     "hydra/launcher=joblib": "hydra-joblib-launcher",
-    "hydra/sweeper=optuna": "hydra-optuna-sweeper",
+    "hydra/sweeper=optuna": "optuna",
 }
 """Hydra options that come with a package: the package to install when the option is missing."""
 
