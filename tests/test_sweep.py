@@ -10,6 +10,8 @@ import pytest
 from conftest import ROOT, TINY, compose_config
 from omegaconf import OmegaConf
 
+from waterair.cli import training
+from waterair.cli.preflight import preflight
 from waterair.cli.sweep import main as rebuild
 from waterair.training.sweep import ERROR_FILE, LAUNCH_FILE, read_jobs
 
@@ -131,3 +133,22 @@ def test_an_optuna_search_of_two_tiny_trials_writes_its_summary_and_best(tmp_pat
     best = max(jobs, key=lambda job: job.metrics["agent/ratio_to_ub"])
     assert OmegaConf.load(tmp_path / "optimization_results.yaml").best_value == best.metrics["agent/ratio_to_ub"]
     assert f"Best: job {best.number} " in (tmp_path / "summary.md").read_text()
+
+
+SEARCH_REFUSALS = [
+    (["hydra.sweeper.max_failure_rate=2"], "error: hydra.sweeper.max_failure_rate = 2.0 is out of range; allowed [0,"),
+    (["hydra.sweeper.n_jobs=0"], "error: hydra.sweeper.n_jobs = 0 is out of range; allowed [1, inf]"),
+    (["hydra.sweeper.direction=up"], "error: hydra.sweeper.direction = 'up' is not allowed; choose one of maximize"),
+    (["agent.gamma=tag(log,interval(0,0.3))"], "error: agent.gamma=tag(log,interval(0,0.3)): `low > 0` must hold"),
+    (["hydra/sweeper/sampler=cmaes"], "error: hydra/sweeper/sampler=cmaes is not an option of hydra/sweeper/sampler"),
+]
+"""Searches the sweeper cannot run, and the start of the one line each is refused with."""
+
+
+@pytest.mark.parametrize("overrides,message", SEARCH_REFUSALS, ids=[case[0][0] for case in SEARCH_REFUSALS])
+def test_a_search_its_sweeper_cannot_run_is_refused_in_one_line_before_anything_is_written(overrides, message):
+    before = sorted((ROOT / "outputs").rglob("*")) if (ROOT / "outputs").is_dir() else []
+    with pytest.raises(SystemExit) as stop:
+        preflight("config", ["-m", "hydra/sweeper=optuna", *overrides], training.check)
+    assert str(stop.value.code).startswith(message) and "\n" not in str(stop.value.code)
+    assert (sorted((ROOT / "outputs").rglob("*")) if (ROOT / "outputs").is_dir() else []) == before
