@@ -243,7 +243,7 @@ SEARCH_REFUSALS = [
     (["hydra.sweeper.max_failure_rate=2"], "error: hydra.sweeper.max_failure_rate = 2.0 is out of range; allowed [0,"),
     (["hydra.sweeper.n_jobs=0"], "error: hydra.sweeper.n_jobs = 0 is out of range; allowed [1, inf]"),
     (["hydra.sweeper.direction=up"], "error: hydra.sweeper.direction = 'up' is not allowed; choose one of maximize"),
-    (["agent.gamma=tag(log,interval(0,0.3))"], "error: agent.gamma=tag(log,interval(0,0.3)): `low > 0` must hold"),
+    (["agent.gamma=tag(log,interval(0,0.3))"], "error: agent.gamma=tag(log,interval(0,0.3)): a log scale needs low"),
     (["hydra/sweeper/sampler=cmaes"], "error: hydra/sweeper/sampler=cmaes is not an option of hydra/sweeper/sampler"),
 ]
 """Searches the sweeper cannot run, and the start of the one line each is refused with."""

@@ -147,6 +147,8 @@ def distribution(override: Override) -> Any:
     try:
         if isinstance(sweep, IntervalSweep):
             assert sweep.start is not None and sweep.end is not None  # the parser sets both
+            if "log" in sweep.tags and sweep.start <= 0:
+                raise ValueError(f"a log scale needs low > 0, not {sweep.start:g}")
             return FloatDistribution(sweep.start, sweep.end, log="log" in sweep.tags)
         if isinstance(sweep, RangeSweep):  # shuffled or not: the order of a grid, not a sampler's
             values = [value for value in override.sweep_iterator() if isinstance(value, int | float)]
