@@ -124,7 +124,7 @@ def test_a_missing_launcher_package_is_named_with_what_to_install(monkeypatch):
     assert str(stop.value.code).startswith("error: hydra/launcher=submitit_slurm needs the package submitit")
     error = ValueError("In 'hydra/config': Could not find 'hydra/sweeper/optuna'\n\nAvailable options in "
                        "'hydra/sweeper':\n\tbasic\n\tgrid\nConfig search path:\n\tprovider=hydra")  # fmt: skip
-    assert one_line(error).startswith("hydra/sweeper=optuna needs the package hydra-optuna-sweeper")
+    assert one_line(error).startswith("hydra/sweeper=optuna needs the package optuna")
 
 
 def test_a_slurm_sweep_asking_for_cuda_is_checked_on_a_cpu_here_and_a_search_at_its_ends():

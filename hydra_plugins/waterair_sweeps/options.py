@@ -8,10 +8,10 @@ package is imported could be undone by a plugin imported after it.
 from hydra.core.config_search_path import ConfigSearchPath
 from hydra.plugins.search_path_plugin import SearchPathPlugin
 
-from hydra_plugins.waterair_sweeps import launchers, sweepers
+from hydra_plugins.waterair_sweeps import launchers, search
 
 
 class TrainOptions(SearchPathPlugin):
     def manipulate_search_path(self, search_path: ConfigSearchPath) -> None:
         launchers.register()
-        sweepers.register()
+        search.register()

@@ -2,23 +2,19 @@
 
 - ``grid`` (train.py's default, ``conf/hydra/sweeper/grid.yaml``): Hydra's basic sweeper, every
   combination of the swept values, except that a failed job does not stop the sweep;
-- ``optuna`` (hydra-optuna-sweeper): a search that maximises what ``train.py`` returns, the greedy
+- ``optuna`` (:mod:`.search`): a search that maximises what ``train.py`` returns, the greedy
   policy's ratio to the upper bound in the closing evaluation; a failed job is a failed trial.
 
 Either way the sweep ends in :class:`waterair.training.sweep.SweepSummary`, which writes the
 summary of the jobs that finished, names those that did not, and sets the exit status.
 """
 
-# No "from __future__ import annotations": Hydra runs this module before it is in sys.modules, where
-# dataclasses look string annotations up.
 import logging
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
-from hydra.core.config_store import ConfigStore
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import OmegaConf
 
@@ -48,44 +44,3 @@ class GridSweeper(BasicSweeper):
             returns.append(self.launcher.launch(batch, initial_job_idx=initial_job_idx))
             initial_job_idx += len(batch)
         return returns
-
-
-try:
-    from hydra_plugins.hydra_optuna_sweeper.config import OptunaSweeperConf
-    from hydra_plugins.hydra_optuna_sweeper.optuna_sweeper import OptunaSweeper
-except ImportError:  # hydra-optuna-sweeper not installed: hydra/sweeper=optuna is refused by the preflight
-    OptunaSweeper = None
-
-
-if OptunaSweeper is not None:
-
-    class SearchSweeper(OptunaSweeper):
-        """Optuna's sweeper, quiet (its INFO lines say nothing the summary does not), and ending normally
-        when no trial finished, so that the summary says why."""
-
-        def __init__(self, *args: Any, **kwargs: Any) -> None:
-            import optuna
-
-            optuna.logging.set_verbosity(optuna.logging.WARNING)
-            super().__init__(*args, **kwargs)
-
-        def sweep(self, arguments: list[str]) -> None:
-            try:
-                super().sweep(arguments)
-            except ValueError as error:  # study.best_trial with no completed trial
-                if "No trials are completed yet" not in str(error):
-                    raise
-
-    @dataclass
-    class SearchSweeperConf(OptunaSweeperConf):
-        """hydra/sweeper=optuna for train.py: maximise the returned ratio; a failed job is a failed trial."""
-
-        _target_: str = "hydra_plugins.waterair_sweeps.sweepers.SearchSweeper"
-        direction: Any = "maximize"
-        max_failure_rate: float = 1.0
-
-
-def register() -> None:
-    """Make hydra/sweeper=optuna the search sweeper above (called by :mod:`.options`)."""
-    if OptunaSweeper is not None:
-        ConfigStore.instance().store(group="hydra/sweeper", name="optuna", node=SearchSweeperConf, provider="waterair")

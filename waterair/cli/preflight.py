@@ -3,7 +3,8 @@
 ``train.py`` and ``evaluate.py`` call :func:`preflight` first. It composes the config exactly as
 Hydra will (every job of a ``-m`` sweep), refuses keys the config does not have (``foo=1`` and
 ``+foo=1`` alike: a typo must not silently start a run), refuses removed keys (``~key``), and
-runs the program's own validation. A sweep's launcher is checked too (:mod:`waterair.cli.launch`).
+runs the program's own validation. A sweep's launcher is checked too (:mod:`waterair.cli.launch`),
+and a search's keys and space by its sweeper.
 Any problem exits with status 1 and one line on stderr, before Hydra creates a run directory.
 Adding a whole config group with ``+group=option`` stays allowed.
 """
@@ -17,7 +18,8 @@ from collections.abc import Callable, Sequence
 from hydra import compose, initialize_config_dir
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
 from hydra.core.override_parser.overrides_parser import OverridesParser
-from hydra.errors import HydraException
+from hydra.errors import HydraException, InstantiationException
+from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
@@ -37,7 +39,7 @@ PLUGINS = {
     "hydra/launcher=submitit_slurm": "hydra-submitit-launcher",
     "hydra/launcher=submitit_local": "hydra-submitit-launcher",
     "hydra/launcher=joblib": "hydra-joblib-launcher",
-    "hydra/sweeper=optuna": "hydra-optuna-sweeper",
+    "hydra/sweeper=optuna": "optuna",
 }
 """Hydra options that come with a package: the package to install when the option is missing."""
 
@@ -57,6 +59,8 @@ def preflight(config_name: str, argv: Sequence[str], check: Callable[[DictConfig
             check(on_a_cpu(cfg) if remote else cfg, overrides)
         if hydra is not None:
             check_launcher(hydra)
+            if search:
+                check_search(hydra, argv)
     except (CommandLineError, ValueError) as error:
         sys.exit(f"error: {error}")
     except (OmegaConfBaseException, HydraException) as error:  # a key missing or of the wrong type
@@ -110,6 +114,15 @@ def sweep_config(config_name: str, argv: Sequence[str]) -> DictConfig:
             return compose(config_name=config_name, overrides=plain, return_hydra_config=True).hydra
     except (HydraException, OmegaConfBaseException) as error:
         raise CommandLineError(one_line(error)) from None
+
+
+def check_search(hydra: DictConfig, argv: Sequence[str]) -> None:
+    """A search's keys and space, checked by its sweeper as it is built and as it starts (``hydra/sweeper=optuna``)."""
+    try:
+        sweeper = instantiate(hydra.sweeper)
+    except InstantiationException as error:  # the sweeper's own one-line ValueError, wrapped by Hydra
+        raise error.__cause__ if isinstance(error.__cause__, ValueError) else error from None
+    sweeper.space([arg for arg in argv if not arg.startswith("-")])
 
 
 def on_a_cpu(cfg: DictConfig) -> DictConfig:
