@@ -169,5 +169,8 @@ def test_the_readme_tour_runs_as_written():
     tour = readme.split("## A short tour", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
     done = subprocess.run([sys.executable, "-c", tour], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
-    intensity = float(done.stdout.strip().removeprefix("tensor(").split(",")[0].rstrip(")"))
-    assert 0.8 < intensity < 1.2  # aligned along the exact path: about the calm-sea gain
+    printed = dict(line.split(" ", 1) for line in done.stdout.strip().splitlines())
+    intensity = {name: float(value.removeprefix("tensor(").rstrip(")")) for name, value in printed.items()}
+    assert 0.8 < intensity["single_path"] < 1.2  # aligned along the exact path: about the calm-sea gain
+    # the ray tube on the paper's sea at 12 m/s: the tracked point carries 0.77 of the light on average
+    assert 0.6 < intensity["full"] < 0.95  # (docs/model.md §4.2)
