@@ -2,9 +2,9 @@
 
 torch starts one intra-op thread per CPU it sees. When something else runs on those CPUs, its
 threads wait for each other at every parallel operation: on the 2-core development machine, with
-one busy single-threaded process beside it, the default run's loop at torch's two threads ran
-several times slower than at one, while one thread kept the core the busy process left
-(docs/benchmarks.md, "Training under load"). ``auto`` therefore takes:
+one busy single-threaded process beside it (and other work), a short default run went at 8 frames/s
+on torch's two threads and at 124 on one (docs/benchmarks.md, "The default run, short and long,
+and under load"). ``auto`` therefore takes:
 
 1. ``OMP_NUM_THREADS`` when it is set: whoever started the process chose (joblib's workers get
    cores ÷ jobs, the submitit launchers their ``cpus_per_task``);
