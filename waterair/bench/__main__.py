@@ -9,8 +9,9 @@ meaningful. Timings are wall-clock medians after a warm-up.
   batch size, with the floor ratio (:mod:`.env`).
 * ``controllers``: the step time the classical controllers and the realistic sensor add over the
   flat-sea Snell baseline (:mod:`.controllers`).
-* ``training``: a DDPG update against bare PyTorch, train.py's frames per second against
-  Stable-Baselines3 DDPG on our Gymnasium view (:mod:`.training`).
+* ``training``: a DDPG update against bare PyTorch; train.py's frames per second (collection,
+  update, whole loop; short and long runs, eager and compiled) against Stable-Baselines3 DDPG on our
+  Gymnasium view, and quiet against beside a busy process (:mod:`.training`).
 * ``quality``: wall time to a greedy 0.95 of the upper bound at the S1 point, ours against
   Stable-Baselines3 DDPG, measured in one run (:mod:`.quality`).
 * ``summary``: the speed targets as ratios, from the JSON files of the suites above (:mod:`.summary`).
@@ -45,6 +46,7 @@ from waterair.bench.summary import main as summary
 from waterair.bench.training import bench_training, training_table
 from waterair.core.devices import resolve_device
 from waterair.core.files import atomic_write_json
+from waterair.core.threads import check_threads
 from waterair.physics import sea_state
 
 
@@ -77,10 +79,17 @@ def main(argv: list[str] | None = None) -> int:
     montecarlo.add_argument("--facets", type=int, default=64, help="unresolved-slope draws per surface ray")
     montecarlo.add_argument("--offset", type=float, default=0.1, help="offset ratio")
     evaluation = sub.add_parser("evaluate", help="the default evaluate.py work, batched vs one policy at a time")
-    training = sub.add_parser("training", help="DDPG update vs bare PyTorch, train.py vs Stable-Baselines3")
+    training = sub.add_parser(
+        "training", help="train.py's frames/s (short, long, eager, compiled, under load) vs bare PyTorch and SB3"
+    )
     training.add_argument("--updates", type=int, default=300, help="timed updates (median reported)")
-    training.add_argument("--frames", type=int, default=40_000, help="frames of each timed train.py run")
+    training.add_argument("--short-frames", type=int, default=3_200, help="frames of the short train.py runs")
+    training.add_argument("--long-frames", type=int, default=32_000, help="frames of the long train.py runs")
     training.add_argument("--sb3-frames", type=int, default=4_000, help="timed Stable-Baselines3 frames")
+    training.add_argument(
+        "--threads", default="auto", type=_threads, help="torch threads of every run: auto (train.py's rule) or N"
+    )
+    training.add_argument("--no-load", action="store_false", dest="load", help="skip the runs beside a busy process")
     quality = sub.add_parser("quality", help="wall time to a greedy 0.95 of UB: ours vs Stable-Baselines3 DDPG")
     quality.add_argument("--budgets", type=int, nargs="+", default=[1600, 8000, 40000], help="our runs' frames")
     quality.add_argument(
@@ -121,7 +130,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.exit(2, f"error: {error}\n")
     if args.suite == "training":
         record = {"machine": machine(torch.device("cpu"), torch.float32)}
-        record.update(bench_training(args.updates, args.frames, args.sb3_frames))
+        record.update(
+            bench_training(args.updates, args.short_frames, args.long_frames, args.sb3_frames, args.threads, args.load)
+        )
         print(training_table(record))
     elif args.suite == "quality":
         record = {"machine": machine(torch.device("cpu"), torch.float32)}
@@ -160,6 +171,14 @@ def main(argv: list[str] | None = None) -> int:
     atomic_write_json(out, record)
     print(f"\nwritten {out}")
     return 0
+
+
+def _threads(text: str) -> int | str:
+    """``--threads``: ``auto`` or a count, checked as train.py checks ``threads``."""
+    try:
+        return check_threads(text if text == "auto" else int(text) if text.lstrip("-").isdigit() else text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 if __name__ == "__main__":

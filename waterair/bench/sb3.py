@@ -6,6 +6,8 @@ Stable-Baselines3 is not a dependency: :func:`sb3_ddpg` returns None when it doe
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import torch
 from omegaconf import DictConfig, OmegaConf
 from tensordict.nn import TensorDictModuleBase
@@ -17,7 +19,8 @@ from waterair.training.builders import env_config
 def sb3_ddpg(cfg: DictConfig, seed: int = 0):
     """A Stable-Baselines3 DDPG model on one link of ``cfg``'s environment (eager step), with
     ``cfg``'s learning rate, replay capacity, batch, τ, discount, Gaussian noise σ, hidden layers
-    and updates per frame, learning from its first full batch; None without Stable-Baselines3."""
+    and updates per frame (as a fraction: n updates every m steps), learning from its first full batch;
+    None without Stable-Baselines3."""
     try:
         from stable_baselines3 import DDPG
         from stable_baselines3.common.noise import NormalActionNoise
@@ -27,6 +30,7 @@ def sb3_ddpg(cfg: DictConfig, seed: int = 0):
 
     from waterair.envs.gym import WaterAirGymEnv
 
+    ratio = Fraction(cfg.collector.updates_per_frame).limit_denominator(64)  # 0.15625: 5 updates every 32 steps
     reward = Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True))
     env = WaterAirGymEnv(env_config(cfg).replace(compile_kernel=False), reward=reward, seed=seed)
     return DDPG(
@@ -38,8 +42,8 @@ def sb3_ddpg(cfg: DictConfig, seed: int = 0):
         batch_size=cfg.buffer.batch_size,
         tau=cfg.agent.tau,
         gamma=cfg.agent.gamma,
-        train_freq=(round(1 / cfg.collector.updates_per_frame), "step"),
-        gradient_steps=1,
+        train_freq=(ratio.denominator, "step"),
+        gradient_steps=ratio.numerator,
         action_noise=NormalActionNoise(np.zeros(4), cfg.noise.sigma_init * np.ones(4)),
         policy_kwargs={"net_arch": list(cfg.actor.hidden)},
         device="cpu",

@@ -1,25 +1,39 @@
 """Training benchmark: ``python -m waterair.bench training`` (see :mod:`waterair.bench`).
 
-* **update**: one DDPG update of the default configuration (batch 64, 256 × 256 MLPs, Adam, soft
-  target update) in our pipeline (TorchRL ``DDPGLoss`` on a ``TensorDictReplayBuffer`` sample),
-  eager and compiled, against the same networks and math written as bare PyTorch (tensors indexed
-  from preallocated storage), with the eager update's breakdown (sample, loss, backward and
-  optimiser steps, target update).
-* **train**: frames per second of ``train.py``'s loop on the default configuration (PPO) and with
-  ``agent=ddpg`` (collector, replay, updates at 0.25 per frame), from its own per-batch timings
-  after the compile warm-up, and the wall time of the whole run;
-* **sb3**: Stable-Baselines3 DDPG on our Gymnasium view of the same environment, at DDPG's updates
-  per frame, networks, batch and learning rates, if ``stable_baselines3`` can be imported; it is
-  compared with our DDPG.
+The whole suite runs on the torch threads of ``--threads`` (``auto``: train.py's rule,
+:func:`waterair.core.threads.choose_threads`), each training run in a fresh process as train.py
+would start it.
+
+* **update**: one DDPG update (batch 64, 256 × 256 MLPs, Adam, soft target update) in our
+  pipeline (TorchRL ``DDPGLoss`` on a ``TensorDictReplayBuffer`` sample), eager and compiled,
+  against the same networks and math written as bare PyTorch (tensors indexed from preallocated
+  storage), with the eager update's breakdown (sample, loss, backward and optimiser steps, target
+  update). At the default run's updates per frame, the bare update alone bounds a loop's frames/s.
+* **runs**: ``train()`` on the default configuration (PPO) for a short and a long run, eager and
+  compiled: frames per second of collection, of the updates and of the whole loop (collection plus
+  updates), over the whole run (the compiles included) and after its first batch, and the wall time
+  of the call (set-up, compiles and a two-sea closing evaluation included); ``agent=ddpg``
+  compiled for the long run;
+* **sb3**: Stable-Baselines3 DDPG on our Gymnasium view of the same environment, at the default
+  run's updates per frame, with DDPG's networks, batch and learning rates, if
+  ``stable_baselines3`` can be imported;
+* **load**: the short default run (and SB3) again with a busy single-threaded Python loop beside
+  it, which the suite starts and stops: frames/s loaded over quiet, at torch's own thread count
+  (one per CPU, the behaviour before ``threads``) and at ``--threads``.
 """
 
 from __future__ import annotations
 
 import copy
 import csv
+import json
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import torch
@@ -27,6 +41,7 @@ from hydra import compose, initialize_config_dir
 from torch import nn
 
 from waterair.bench.sb3 import sb3_ddpg
+from waterair.core.threads import choose_threads, torch_threads
 from waterair.training.builders import (
     TRANSITION_KEYS,
     make_actor,
@@ -37,9 +52,15 @@ from waterair.training.builders import (
     make_optimisers,
     make_update,
 )
+from waterair.training.compiling import compile_plan
 from waterair.training.config import CONF_DIR
 
 BUFFER_FILL = 20_000
+TORCH_THREADS = torch.get_num_threads()
+"""torch's own intra-op thread count in this process before the suite changes it: one per CPU it sees
+(or ``OMP_NUM_THREADS``), what every run used before the ``threads`` key."""
+COMPILED = ["env.compile_kernel=true", "compile_update=true"]
+EAGER = ["env.compile_kernel=false", "compile_update=false"]
 
 
 def compose_training(overrides: list[str]):
@@ -162,61 +183,133 @@ def bench_bare(cfg, observation_size: int, buffer, updates: int) -> float:
     return _median_ms(update, updates)
 
 
-def bench_train(frames: int, overrides: list[str]) -> dict:
-    """``train()`` on the default configuration for ``frames`` frames: steady frames/s and wall time."""
+def bench_training(
+    updates: int, short_frames: int, long_frames: int, sb3_frames: int, threads: int | str, load: bool = True
+) -> dict:
+    """Every measurement of the module docstring, in this order, on the threads ``threads`` chooses."""
+    count, why = choose_threads(threads)
+    record: dict = {"benchmark": "training"}
+    record["threads"] = {"setting": threads, "count": count, "why": why, "torch_default": TORCH_THREADS}
+    default = compose_training([])
+    utd = float(default.collector.updates_per_frame)
+    with torch_threads(count):
+        record["update"] = bench_update(updates)
+        record["update"]["updates_per_frame"] = utd
+        record["update"]["bare_bound_frames_per_s"] = 1e3 / (utd * record["update"]["bare_ms"])
+        record["runs"] = []
+        for frames in (short_frames, long_frames):
+            plan, auto = compile_plan(default, frames)  # what train.py would choose for this run
+            for mode, overrides in (("eager", EAGER), ("compiled", COMPILED)):
+                row = train_run(frames, [*overrides, f"threads={threads}"])
+                chosen = plan.compile_update == (mode == "compiled")
+                record["runs"].append({"mode": mode, "auto": auto, "default": chosen, **row})
+        record["train_ddpg"] = train_run(long_frames, ["agent=ddpg", *COMPILED, f"threads={threads}"])
+        record["sb3"] = bench_sb3(sb3_frames, utd)
+        if load:
+            settings = [str(TORCH_THREADS)] + ([str(threads)] if str(threads) != str(TORCH_THREADS) else [])
+            record["load"] = bench_load(short_frames, settings, sb3_frames, utd)
+    if record["sb3"] is not None:
+        for row in record["runs"]:
+            row["over_sb3"] = row["loop_frames_per_s"] / record["sb3"]["frames_per_s"]
+    return record
+
+
+def train_run(frames: int, overrides: list[str]) -> dict:
+    """``train()`` on the default configuration with ``overrides`` for ``frames`` frames, in a fresh process."""
+    args = json.dumps({"frames": frames, "overrides": overrides})
+    child = "import sys; from waterair.bench.training import run_in_child; run_in_child(sys.argv[1])"
+    done = subprocess.run([sys.executable, "-c", child, args], capture_output=True, text=True)
+    if done.returncode:
+        raise RuntimeError(f"the training run {overrides} failed:\n{done.stderr[-3000:]}")
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+def run_in_child(args: str) -> None:
+    """The child of :func:`train_run`: one run, then its timings as the last line of stdout (JSON).
+
+    Collection and update seconds are the loop's own per-batch timings (``metrics.csv``); the first
+    batch holds the compiles, if any.
+    """
     from waterair.training.loop import train
 
+    request = json.loads(args)
+    frames, overrides = request["frames"], request["overrides"]
     with tempfile.TemporaryDirectory() as run_dir:
         cfg = compose_training(
-            [
-                f"total_frames={frames}",
-                f"checkpoint.every_frames={frames}",
-                "eval.realisations=2",
-                "eval.steps=10",
-                "logger.progress_bar=false",
-                *overrides,
-            ]
+            [f"total_frames={frames}", f"checkpoint.every_frames={frames}", "eval.realisations=2", "eval.steps=10"]
+            + ["logger.progress_bar=false", *overrides]
         )
+        lines: list[str] = []
         start = time.perf_counter()
-        train(cfg, Path(run_dir), progress=lambda line: None)
+        metrics = train(cfg, Path(run_dir), progress=lines.append)
         wall = time.perf_counter() - start
         with open(Path(run_dir) / "metrics.csv", newline="") as handle:
             rows = list(csv.DictReader(handle))
-    rates = [float(row["time/frames_per_s"]) for row in rows]
-    steady = rates[len(rates) // 4 :]  # past the compile warm-up
-    return {"frames": frames, "overrides": overrides, "frames_per_s": statistics.median(steady), "wall_s": wall}
+    batch = cfg.collector.frames_per_batch
+    seconds = [batch / float(row["time/frames_per_s"]) for row in rows]
+    collect = [s * float(row["time/env_share"]) for s, row in zip(seconds, rows, strict=True)]
+    update = [s - c for s, c in zip(seconds, collect, strict=True)]
+    record = {"frames": frames, "overrides": overrides, "threads": lines[0], "compiles": lines[1], "wall_s": wall}
+    record["updates_per_frame"] = metrics["updates"] / frames
+    for part, values in (("collect", collect), ("update", update), ("loop", seconds)):
+        record[f"{part}_frames_per_s"] = frames / sum(values)
+        record[f"{part}_after_first_batch_frames_per_s"] = (
+            (frames - batch) / sum(values[1:]) if len(values) > 1 else None
+        )
+    print(json.dumps(record))
 
 
-def bench_sb3(frames: int) -> dict | None:
+def bench_sb3(frames: int, updates_per_frame: float) -> dict | None:
     """Stable-Baselines3 DDPG (:func:`waterair.bench.sb3.sb3_ddpg`) on one link of the environment
-    ``agent=ddpg`` trains on, timed over ``frames`` frames after a warm-up past its first updates."""
-    model = sb3_ddpg(compose_training(["agent=ddpg"]))
+    ``agent=ddpg`` trains on at ``updates_per_frame``, timed over ``frames`` frames after a warm-up
+    past its first updates."""
+    model = sb3_ddpg(compose_training(["agent=ddpg", f"collector.updates_per_frame={updates_per_frame}"]))
     if model is None:
         return None
     model.learn(3000)
     start = time.perf_counter()
     model.learn(frames, reset_num_timesteps=False)
-    return {"frames": frames, "frames_per_s": frames / (time.perf_counter() - start)}
+    return {
+        "frames": frames,
+        "updates_per_frame": updates_per_frame,
+        "frames_per_s": frames / (time.perf_counter() - start),
+    }
 
 
-COMPILED = ["env.compile_kernel=true", "compile_update=true"]
-"""The compiled rows compile whatever their frames (``auto`` would not at these budgets)."""
-
-
-def bench_training(updates: int, frames: int, sb3_frames: int) -> dict:
-    record = {"benchmark": "training", "update": bench_update(updates)}
-    record["train"] = bench_train(frames, COMPILED)
-    record["train_eager"] = bench_train(frames, ["env.compile_kernel=false", "compile_update=false"])
-    record["train_ddpg"] = bench_train(frames, ["agent=ddpg", *COMPILED])
-    record["sb3"] = bench_sb3(sb3_frames)
-    if record["sb3"] is not None:
-        record["train_over_sb3"] = record["train_ddpg"]["frames_per_s"] / record["sb3"]["frames_per_s"]
+def bench_load(frames: int, settings: list[str], sb3_frames: int, updates_per_frame: float) -> dict:
+    """The default run of ``frames`` frames at each thread setting, quiet then beside a busy process, and SB3."""
+    record: dict = {"frames": frames, "rows": []}
+    for setting in settings:
+        quiet = train_run(frames, [f"threads={setting}"])
+        with busy_process():
+            loaded = train_run(frames, [f"threads={setting}"])
+        ratio = loaded["loop_frames_per_s"] / quiet["loop_frames_per_s"]
+        record["rows"].append({"threads": setting, "quiet": quiet, "loaded": loaded, "loaded_over_quiet": ratio})
+    quiet_sb3 = bench_sb3(sb3_frames, updates_per_frame)
+    if quiet_sb3 is not None:
+        with busy_process():
+            loaded_sb3 = bench_sb3(sb3_frames, updates_per_frame)
+        ratio = loaded_sb3["frames_per_s"] / quiet_sb3["frames_per_s"]
+        record["sb3"] = {"quiet": quiet_sb3, "loaded": loaded_sb3, "loaded_over_quiet": ratio}
     return record
 
 
+@contextmanager
+def busy_process() -> Iterator[None]:
+    """A single-threaded Python loop in its own process for the duration of the block."""
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        yield
+    finally:
+        busy.kill()
+        busy.wait()
+
+
 def training_table(record: dict) -> str:
-    u = record["update"]
+    u, t = record["update"], record["threads"]
     lines = [
+        f"torch threads: {t['count']} ({t['why']}); torch's own default here: {t['torch_default']}",
+        "",
         "| quantity | value |",
         "|---|---|",
         f"| DDPG update, ours eager | {u['ours_eager_ms']:.2f} ms |",
@@ -224,13 +317,39 @@ def training_table(record: dict) -> str:
         f"| DDPG update, bare PyTorch | {u['bare_ms']:.2f} ms |",
         f"| ratio ours / bare (eager, compiled) | {u['ratio_eager']:.2f}, {u['ratio_compiled']:.2f} |",
         "| eager breakdown (ms) | " + ", ".join(f"{k} {v:.2f}" for k, v in u["breakdown_eager_ms"].items()) + " |",
-        f"| train.py frames/s (defaults: PPO) | {record['train']['frames_per_s']:,.0f} |",
-        f"| train.py frames/s (PPO, eager env and update) | {record['train_eager']['frames_per_s']:,.0f} |",
-        f"| train.py frames/s (agent=ddpg) | {record['train_ddpg']['frames_per_s']:,.0f} |",
+        f"| bare update alone at {u['updates_per_frame']:.4g} updates a frame "
+        f"| {u['bare_bound_frames_per_s']:,.0f} frames/s |",
+        f"| train.py frames/s (agent=ddpg, compiled, {record['train_ddpg']['frames']:,} frames) "
+        f"| {record['train_ddpg']['loop_frames_per_s']:,.0f} |",
     ]
-    if record["sb3"] is not None:
-        lines.append(f"| SB3 DDPG frames/s | {record['sb3']['frames_per_s']:,.0f} |")
-        lines.append(f"| train.py DDPG / SB3 DDPG | {record['train_over_sb3']:.1f} |")
-    else:
-        lines.append("| SB3 DDPG | not installed |")
+    sb3 = record["sb3"]
+    lines.append(
+        f"| SB3 DDPG frames/s at {u['updates_per_frame']:.4g} updates a frame | {sb3['frames_per_s']:,.0f} |"
+        if sb3
+        else "| SB3 DDPG | not installed |"
+    )
+    lines += [
+        "",
+        "| run | frames | collection frames/s | update frames/s | whole loop frames/s | after the first batch "
+        "| wall (s) | loop over SB3 |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for row in record["runs"]:
+        name = f"{row['mode']}{' (auto)' if row['default'] else ''}"
+        after, over = row["loop_after_first_batch_frames_per_s"], row.get("over_sb3")
+        lines.append(
+            f"| {name} | {row['frames']:,} | {row['collect_frames_per_s']:,.0f} | {row['update_frames_per_s']:,.0f} "
+            f"| {row['loop_frames_per_s']:,.0f} | {'–' if after is None else f'{after:,.0f}'} | {row['wall_s']:.0f} "
+            f"| {'–' if over is None else f'{over:.1f}'} |"
+        )
+    if "load" in record:
+        load = record["load"]
+        lines += ["", f"With a busy process beside it ({load['frames']:,} frames, the default run):", ""]
+        lines += ["| threads | quiet frames/s | loaded frames/s | loaded / quiet |", "|---|---|---|---|"]
+        for row in load["rows"]:
+            quiet, loaded = row["quiet"]["loop_frames_per_s"], row["loaded"]["loop_frames_per_s"]
+            lines.append(f"| {row['threads']} | {quiet:,.0f} | {loaded:,.0f} | {row['loaded_over_quiet']:.2f} |")
+        if "sb3" in load:
+            quiet, loaded = load["sb3"]["quiet"]["frames_per_s"], load["sb3"]["loaded"]["frames_per_s"]
+            lines.append(f"| SB3 DDPG | {quiet:,.0f} | {loaded:,.0f} | {load['sb3']['loaded_over_quiet']:.2f} |")
     return "\n".join(lines)

@@ -8,6 +8,7 @@ from pathlib import Path
 from omegaconf import DictConfig
 
 from waterair.cli.console import quiet_dependencies
+from waterair.core.threads import AUTO, choose_threads, torch_threads
 from waterair.evaluation.report import write_outputs
 from waterair.evaluation.runner import evaluate, prepare
 
@@ -20,10 +21,17 @@ def check(cfg: DictConfig, overrides: list[str]) -> None:
 
 
 def run(cfg: DictConfig, output_dir: str | Path) -> None:
-    """Evaluate, log one line per rollout with its time, write the outputs and say where they are."""
+    """Evaluate, log one line per rollout with its time, write the outputs and say where they are.
+
+    torch's threads follow train.py's ``threads: auto`` (:func:`waterair.core.threads.choose_threads`;
+    ``OMP_NUM_THREADS`` sets them).
+    """
     quiet_dependencies()
     out = Path(output_dir)
-    result = evaluate(cfg, progress=log.info)
+    threads, why = choose_threads(AUTO)
+    log.info(f"Running on {threads} torch thread{'s' if threads > 1 else ''} ({why})")
+    with torch_threads(threads):
+        result = evaluate(cfg, progress=log.info)
     written = write_outputs(result, out, cfg, physics=cfg.physics_figures)
     log.info(f"Wrote {len(written)} files to {out}: metrics.json, metrics.csv, {len(written) - 3} figures, report.md")
     log.info(f"Report: {out / 'report.md'} ({result.seconds:.0f} s)")

@@ -12,6 +12,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from waterair.agents.networks import ACTIVATIONS
 from waterair.core.devices import resolve_device
+from waterair.core.threads import AUTO as AUTO_THREADS
+from waterair.core.threads import check_threads
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.config import EnvConfig
 from waterair.envs.link import link_budget
@@ -52,6 +54,7 @@ def validate(cfg: DictConfig) -> None:
     link = link_budget(OmegaConf.to_container(cfg.link, resolve=True) if "link" in cfg else None, env)
     Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True), link=link)
     resolve_device(cfg.device)  # cuda without a CUDA device is an error now, not after the set-up
+    check_threads(cfg.get("threads", AUTO_THREADS))  # a run saved before the key: auto
     check_int("seed", cfg.seed, 0, 2**63 - 1)
     check_int("total_frames", cfg.total_frames, 1)
     _check_agent(cfg.agent)

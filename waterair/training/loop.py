@@ -18,6 +18,8 @@ from tqdm import tqdm
 from waterair.agents.checkpoint import load_state
 from waterair.core.devices import resolve_device
 from waterair.core.files import atomic_write_json, atomic_write_text
+from waterair.core.threads import AUTO as AUTO_THREADS
+from waterair.core.threads import choose_threads, torch_threads
 from waterair.envs.controllers import controller_for
 from waterair.evaluation.metrics import FADE_FRACTION, METRICS
 from waterair.evaluation.runner import compare_policies
@@ -50,10 +52,18 @@ the classical controller of the agent's sensing (:func:`waterair.envs.controller
 def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = print) -> dict[str, float]:
     """Train from ``cfg`` into ``run_dir`` (resuming from its checkpoint if ``cfg.resume``); return final metrics.
 
-    ``progress`` receives a line saying what runs compiled, and one when the closing evaluation starts and ends.
+    ``progress`` receives a line with torch's threads, one saying what runs compiled, and one when the
+    closing evaluation starts and ends. The run uses ``threads`` torch threads
+    (:func:`waterair.core.threads.choose_threads`); the caller's count is restored afterwards.
     """
-    run_dir = Path(run_dir)
     validate(cfg)
+    threads, why = choose_threads(cfg.get("threads", AUTO_THREADS))
+    progress(f"Running on {threads} torch thread{'s' if threads > 1 else ''} ({why})")
+    with torch_threads(threads):
+        return _train(cfg, Path(run_dir), progress)
+
+
+def _train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None]) -> dict[str, float]:
     resumed = bool(cfg.resume) and (run_dir / CHECKPOINT).exists()
     device = resolve_device(cfg.device)
     torch.manual_seed(cfg.seed)

@@ -1,8 +1,8 @@
 """Resuming a run: which run, what the command line may change, and whether anything is left to do.
 
 ``train.py resume=RUN_DIR`` continues ``RUN_DIR`` with the config it was started with. The command
-line may raise ``total_frames`` (the run then collects up to the new count) and switch the progress
-bar; any other key that
+line may raise ``total_frames`` (the run then collects up to the new count), switch the progress
+bar and set ``threads`` (the speed on this machine, not the experiment); any other key that
 differs from the run's is refused, naming it, so that a resumed run is never silently a different
 experiment. A run that already has its frames is left as it is.
 """
@@ -20,8 +20,9 @@ from waterair.agents.checkpoint import load_state
 from waterair.training.checkpoint import CHECKPOINT
 from waterair.training.config import CONF_DIR, validate
 
-FREE_KEYS = ("resume", "total_frames", "logger.progress_bar")
-"""Keys a resume command may set (the bar only changes what the console shows); ``hydra.*`` is free too."""
+FREE_KEYS = ("resume", "total_frames", "logger.progress_bar", "threads")
+"""Keys a resume command may set (the bar only changes what the console shows, ``threads`` the speed on this
+machine); ``hydra.*`` is free too."""
 
 
 @dataclass
@@ -68,6 +69,8 @@ def plan_resume(cfg: DictConfig, overrides: list[str]) -> ResumePlan:
         free["total_frames"] = cfg.total_frames
     if "logger.progress_bar" in given:
         free["logger"] = {"progress_bar": cfg.logger.progress_bar}
+    if "threads" in given:
+        free["threads"] = cfg.threads
     config = OmegaConf.merge(saved, free)
     try:
         validate(config)
