@@ -7,7 +7,7 @@ OUT    ?= outputs
 RUN    ?= $(OUT)/train/$(shell date +%Y-%m-%d/%H-%M-%S)
 SOURCES := waterair hydra_plugins tests train.py evaluate.py
 
-.PHONY: install train evaluate test figures bench slurm-check clean
+.PHONY: install train evaluate test test-fast figures bench slurm-check clean
 
 install: $(STAMP)
 
@@ -26,15 +26,26 @@ train: $(STAMP)
 evaluate: $(STAMP)
 	$(PYTHON) evaluate.py $(ARGS)
 
-# Lint, format check, type check (physics and core), then the tests; the last line says how long it all took.
+# Lint, format check, type check (physics and core), then every test, the 15 slowest listed so that growth
+# shows; the last line says how long it all took. CI runs this.
 test: $(STAMP)
 	@start=$$(date +%s); \
 	$(VENV)/bin/ruff check $(SOURCES) && \
 	$(VENV)/bin/ruff format --check $(SOURCES) && \
 	$(VENV)/bin/mypy && \
-	$(PYTHON) -m pytest -q; \
+	$(PYTHON) -m pytest -q --durations=15; \
 	status=$$?; elapsed=$$(( $$(date +%s) - start )); \
 	echo "make test took $$((elapsed / 60)) min $$((elapsed % 60)) s (exit $$status)"; \
+	exit $$status
+
+# The quick tier while editing: lint, format check and the tests not marked slow.
+test-fast: $(STAMP)
+	@start=$$(date +%s); \
+	$(VENV)/bin/ruff check $(SOURCES) && \
+	$(VENV)/bin/ruff format --check $(SOURCES) && \
+	$(PYTHON) -m pytest -q -m "not slow"; \
+	status=$$?; elapsed=$$(( $$(date +%s) - start )); \
+	echo "make test-fast took $$((elapsed / 60)) min $$((elapsed % 60)) s (exit $$status)"; \
 	exit $$status
 
 figures: $(STAMP)
