@@ -49,6 +49,24 @@ def calm(surface: WaveSurface) -> WaveSurface:
     return still
 
 
+ENTRY_POINTS = {"train.py": "config", "evaluate.py": "evaluate"}
+"""Each entry point's config name."""
+
+
+def rejection(script: str, overrides) -> str:
+    """The one line ``script`` (train.py or evaluate.py) exits with for ``overrides``: its preflight, run
+    in-process exactly as its ``__main__`` runs it first (tests/test_cli.py runs two as processes)."""
+    from waterair.cli import evaluation, training
+    from waterair.cli.preflight import preflight
+
+    check = {"train.py": training.check, "evaluate.py": evaluation.check}[script]
+    with pytest.raises(SystemExit) as stop:
+        preflight(ENTRY_POINTS[script], list(overrides), check)
+    line = str(stop.value.code)
+    assert line.startswith("error: ") and "\n" not in line, line
+    return line
+
+
 def compose_config(name: str, overrides=(), **kwargs):
     """``conf/NAME.yaml`` composed with ``overrides``, as train.py / evaluate.py would see it."""
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
@@ -65,4 +83,5 @@ def preset_config(observation: str, sensor: str, batch: int, **overrides) -> Env
     """The env group with ``env/observation`` and ``env/sensor`` presets, as train.py composes it."""
     cfg = compose_config("config", [f"env/observation={observation}", f"env/sensor={sensor}"])
     values = {**OmegaConf.to_container(cfg.env, resolve=True), "num_envs": batch, "seed": 11, "max_steps": 10**6}
+    values["compile_kernel"] = False  # the YAML's auto is decided by the entry points
     return EnvConfig.from_mapping({**values, **overrides})

@@ -25,12 +25,13 @@ def test_baselines_point_where_they_say():
 
 @pytest.mark.slow
 def test_s1_ordering_of_mean_gain():
-    """S1 (12 m/s, 2e4 m, 20 m vertical, 10 % offset, 25 s), 64 realisations, the same seas for all."""
-    env = WaterAirEnv(num_envs=64, wind=12.0, fetch=2e4, offset_ratio=0.1, max_steps=500)
+    """S1's sea and link (12 m/s, 2e4 m, 20 m vertical, 10 % offset) on a coarser sea, 16 realisations
+    over 10 s, the same seas for all (the order holds with a 10 % margin between the two aligners)."""
+    env = WaterAirEnv(num_envs=16, wind=12.0, fetch=2e4, offset_ratio=0.1, max_steps=500, n_freq=32, n_dir=16)
     mean_gain, upper = {}, None
     for name in ("no_alignment", "straight_facing", "flat_snell"):
         env.set_seed(2024)
-        rollout = env.rollout(500, BASELINES[name](env), break_when_any_done=False)
+        rollout = env.rollout(200, BASELINES[name](env), break_when_any_done=False)
         mean_gain[name] = rollout["next", "gain"].mean().item()
         ub = rollout["next", "gain_upper_bound"].mean().item()
         assert upper is None or ub == pytest.approx(upper, rel=1e-6)  # same seas

@@ -7,7 +7,7 @@ import warnings
 
 import pytest
 import torch
-from conftest import ROOT, compose_config
+from conftest import ROOT, compose_config, rejection
 
 from waterair.cli import launch, training
 from waterair.cli.console import quiet_dependencies
@@ -49,14 +49,24 @@ CASES = [
 
 
 @pytest.mark.parametrize("script,override,message", CASES, ids=[f"{s}:{o}" for s, o, _ in CASES])
-def test_a_rejected_command_prints_one_line_and_leaves_the_output_root_as_it_was(script, override, message, bad_files):
+def test_a_rejected_command_line_is_one_line_and_leaves_the_output_root_as_it_was(script, override, message, bad_files):
     if "cuda" in override and torch.cuda.is_available():
         pytest.skip("a CUDA device is present: env.device=cuda is valid here")
+    before = tree(ROOT / "outputs")
+    assert message in rejection(script, [override.format(**bad_files)])
+    assert tree(ROOT / "outputs") == before
+
+
+END_TO_END = [case for case in CASES if case[1] in ("link.k_a=1.5", "checkpoint={truncated}")]
+
+
+@pytest.mark.parametrize("script,override,message", END_TO_END, ids=[f"{s}:{o}" for s, o, _ in END_TO_END])
+def test_a_rejected_command_exits_non_zero_with_one_line_on_stderr(script, override, message, bad_files):
     before = tree(ROOT / "outputs")
     done = subprocess.run(
         [sys.executable, script, override.format(**bad_files)], cwd=ROOT, capture_output=True, text=True, timeout=120
     )
-    assert done.returncode != 0
+    assert done.returncode == 1
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], done.stderr
     assert tree(ROOT / "outputs") == before

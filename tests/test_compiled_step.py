@@ -1,23 +1,41 @@
 """The compiled environment step (one graph: solve, gains, sensors, observation, reward) against eager.
 
 Both run the same functions (:mod:`waterair.envs.kernel`), so they agree to float32 rounding. Over
-200 steps rounding can move a path solve across its stopping threshold, which shifts the path
+100 steps rounding can move a path solve across its stopping threshold, which shifts the path
 point within the solver tolerance: the comparison allows 1e-4 relative. Where the beam has all but
 left the receiver (I ~ 1e-7), its Gaussian tail turns that into a per-mille change of I, which the
 observed log-intensity feature shows as up to ~1e-4 absolute.
+
+Three small graphs cover what compiles: the observation presets are subsets of one observation with
+every extra (each part is built by its own code whichever preset asks for it), read through the
+realistic sensor (noise, latency, saturation, gating) with residual actions on the quadrant tracker
+and the training defaults' per-link draws, on the paper's sea and single path; and the full channel
+on each sea (the ray tube on the paper's, the two-scale lattice on the ocean's). Each test compiles
+its own graph: none relies on another's compile, whatever the order.
 """
 
 import pytest
 import torch
 
 from tests.conftest import preset_config
+from waterair.envs.config import OBSERVATION_EXTRAS
 from waterair.envs.env import WaterAirEnv
+from waterair.envs.stepper import Stepper
 from waterair.physics.paths import FixedNewtonOptions, solve_path
 from waterair.physics.sea import sea_state
 from waterair.physics.surface import WaveSurface
 
-STEPS = 200
 COMPARED = ("observation", "gain", "gain_upper_bound", "intensity", "reward", "path_valid")
+OCEAN = {"spectrum": "elfouhaily", "n_wavenumbers": 24, "n_dir": 8}
+CONVERGING = {"wind_range": None, "offset_range": None, "newton_iterations": 8}
+"""The ray tube needs the exact path point: at the default sea and offset, with iterations enough that
+the step's graph converges, it compiles without the finishing graphs (which the first graph covers)."""
+GRAPHS = {
+    "every-extra": ({"observation_extras": OBSERVATION_EXTRAS, "residual_base": "aoa_tracker"}, 8, 100),
+    "ray-tube": ({"channel": "full", "n_freq": 32, "n_dir": 16, **CONVERGING}, 2, 40),
+    "two-scale": ({"channel": "full", **OCEAN}, 4, 40),
+}
+"""Each graph: its keys over the quadrant preset with the realistic sensor, its batch and its steps."""
 
 
 def rollout(env: WaterAirEnv, actions: torch.Tensor) -> dict[str, torch.Tensor]:
@@ -30,31 +48,37 @@ def rollout(env: WaterAirEnv, actions: torch.Tensor) -> dict[str, torch.Tensor]:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("observation", ["paper", "intensity", "quadrant"])
-@pytest.mark.parametrize("batch", [1, 64])
-def test_compiled_and_eager_steps_agree_over_200_steps(observation, batch):
-    """The realistic sensor (noise, latency, saturation, gating) exercises every part of the graph,
-    and the presets share one graph per batch size; tests/test_env.py compares the ideal sensor."""
-    config = preset_config(observation, "realistic", batch)
-    actions = 0.3 * torch.randn(STEPS, batch, 4, generator=torch.Generator().manual_seed(batch))
-    eager = rollout(WaterAirEnv(config), actions)
+@pytest.mark.parametrize("graph", list(GRAPHS))
+def test_compiled_and_eager_steps_agree_and_an_eager_env_beside_a_compiled_one_stays_eager(graph, monkeypatch):
+    keys, batch, steps = GRAPHS[graph]
+    config = preset_config("quadrant", "realistic", batch, **keys)
+    finishes = []  # the links a fixed-iteration solve leaves unconverged, finished in a graph of their own
+    finish = Stepper._finish_paths
+    monkeypatch.setattr(Stepper, "_finish_paths", lambda self, *a: finishes.append(1) or finish(self, *a))
+    actions = 0.3 * torch.randn(steps, batch, 4, generator=torch.Generator().manual_seed(batch))
     compiled = rollout(WaterAirEnv(config.replace(compile_kernel=True)), actions)
+    captured = torch._dynamo.utils.counters["stats"]["calls_captured"]
+    eager = rollout(WaterAirEnv(config), actions)
+    assert torch._dynamo.utils.counters["stats"]["calls_captured"] == captured  # the eager env traced nothing
+    assert config.compile_kernel is False and eager["observation"].shape[-1] == config.observation_size
     assert eager["gain"].abs().max() > 0 and eager["path_valid"].float().mean() > 0.95
-    assert eager["observation"].shape[-1] == config.observation_size
+    if graph == "every-extra":
+        assert finishes, "no step left a link unconverged: the finishing graph went untested"
     for key in COMPARED:
         assert torch.isfinite(compiled[key].float()).all(), key
-        atol = 1e-4 if key == "observation" else 1e-5
+        atol = {"observation": 1e-4, "reward": 1e-5}.get(key, 1e-7)
         torch.testing.assert_close(compiled[key], eager[key], rtol=1e-4, atol=atol, msg=key)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("dtype,bound", [(torch.float64, 1e-9), (torch.float32, 1e-4)])
-def test_fixed_iteration_paths_obey_snell_and_match_the_adaptive_solver(dtype, bound, default_positions):
-    """The fixed-iteration solver, compiled, from cold starts (most links need the finishing stages)."""
+@pytest.mark.parametrize("dtype,bound,compiled", [(torch.float64, 1e-9, True), (torch.float32, 1e-4, False)])
+def test_fixed_iteration_paths_obey_snell_and_match_the_adaptive_solver(dtype, bound, compiled, default_positions):
+    """The fixed-iteration solver from cold starts (most links need the finishing stages): compiled in
+    float64, where the bound is tight, and eagerly in float32 (the first graph above runs it compiled)."""
     tx, rx = (v.to(dtype) for v in default_positions)
-    surface = WaveSurface.sample(sea_state(wind=12.0), 1024, seed=3, dtype=dtype)
+    surface = WaveSurface.sample(sea_state(wind=12.0), 256, seed=3, dtype=dtype)
     adaptive = solve_path(surface, tx, rx, 4.0)
-    fixed = solve_path(surface, tx, rx, 4.0, method="newton_fixed", compiled=True)
+    fixed = solve_path(surface, tx, rx, 4.0, method="newton_fixed", compiled=compiled)
     assert fixed.valid.float().mean().item() >= 0.99
     both = fixed.valid & adaptive.valid
     cross_d = torch.linalg.cross(fixed.departure, fixed.normal, dim=-1)

@@ -4,7 +4,6 @@ import pytest
 import torch
 from torchrl.envs.utils import check_env_specs
 
-from tests.conftest import preset_config
 from waterair.core.devices import resolve_device
 from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
@@ -38,8 +37,8 @@ def test_one_line_construction_uses_defaults():
 @pytest.mark.slow
 @pytest.mark.parametrize("wind", [4.0, 12.0, 25.0])
 def test_long_random_rollouts_are_finite_and_below_the_upper_bound(wind):
-    env = WaterAirEnv(num_envs=256, wind=wind, seed=1, n_freq=32, n_dir=16)
-    rollout = env.rollout(500, break_when_any_done=False)
+    env = WaterAirEnv(num_envs=64, wind=wind, seed=1, n_freq=32, n_dir=16, max_steps=250)
+    rollout = env.rollout(250, break_when_any_done=False)
     nxt = rollout["next"]
     for key in ("observation", "reward", "gain", "gain_upper_bound", "intensity"):
         assert torch.isfinite(nxt[key]).all(), key
@@ -222,33 +221,6 @@ def test_cuda_without_a_cuda_device_is_a_clear_error(monkeypatch):
 def test_unknown_config_key_is_an_error():
     with pytest.raises(ValueError, match="env.wnd is not a known key"):
         EnvConfig().replace(wnd=3.0)
-
-
-@pytest.mark.slow
-def test_a_compiled_and_an_eager_env_coexist_with_matching_gain_traces():
-    """The compiled kernel belongs to its env: an eager env built after it stays eager and agrees with it."""
-    counters = torch._dynamo.utils.counters["stats"]
-    # The configuration of tests/test_compiled_step.py's paper preset at B = 64, so that a whole
-    # test run compiles this graph once.
-    config = preset_config("paper", "realistic", 64)
-    compiled = WaterAirEnv(config.replace(compile_kernel=True))
-    traced_before = counters["calls_captured"]
-    eager = WaterAirEnv(config.replace(compile_kernel=False))
-    actions = 0.3 * torch.randn(40, 64, 4, generator=torch.Generator().manual_seed(2))
-    traces = {}
-    for name, env in (("compiled", compiled), ("eager", eager)):
-        env.set_seed(7)
-        td, gains = env.reset(), []
-        for action in actions:
-            td = env.step(td.set("action", action))["next"]
-            gains.append(td["gain"])
-        traces[name] = torch.stack(gains)
-        if name == "compiled":
-            traced_before = counters["calls_captured"]
-    assert counters["calls_captured"] == traced_before  # the eager env's 40 steps traced nothing
-    assert traces["compiled"].abs().max() > 0
-    # as tests/test_compiled_step.py allows: rounding can move a solve across its stopping threshold
-    torch.testing.assert_close(traces["compiled"], traces["eager"], rtol=1e-4, atol=1e-5)
 
 
 def test_observation_layout_names_every_part_in_order():

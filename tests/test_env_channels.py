@@ -1,5 +1,5 @@
 """The environment on each channel model (env.channel, docs/environment.md): specs, finiteness, the
-compiled step, the bound and the paper's model kept as it was."""
+bound and the paper's model kept as it was."""
 
 import pytest
 import torch
@@ -39,25 +39,6 @@ def test_no_nan_or_inf_on_any_channel_whatever_the_sea(channel, spectrum, wind, 
         for key in ("observation", "reward", "gain", "gain_upper_bound", "intensity"):
             assert torch.isfinite(td[key]).all(), key
         assert (td["gain"] <= td["gain_upper_bound"] * (1 + 1e-4) + 1e-30).all()
-
-
-@pytest.mark.slow
-def test_compiled_and_eager_full_channel_agree():
-    """The full channel on the ocean sea compiles into the step's graph: 40 steps, as the
-    compiled-step tests allow (1e-4 relative)."""
-    config = {"num_envs": 16, "seed": 5, "channel": "full", "max_steps": 10**6, **OCEAN}
-    actions = 0.3 * torch.randn(40, 16, 4, generator=torch.Generator().manual_seed(0))
-    traces = []
-    for compiled in (False, True):
-        env = WaterAirEnv(compile_kernel=compiled, **config)
-        td, trace = env.reset(), []
-        for action in actions:
-            td = env.step(td.set("action", action))["next"]
-            trace.append(torch.stack((td["gain"], td["gain_upper_bound"], td["intensity"]), -1))
-        traces.append(torch.stack(trace))
-    eager, compiled_trace = traces
-    assert eager[..., 0].abs().max() > 0
-    torch.testing.assert_close(compiled_trace, eager, rtol=1e-4, atol=1e-7)
 
 
 def test_the_full_channels_upper_bound_does_not_depend_on_the_policy():

@@ -3,13 +3,11 @@
 import json
 import math
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import torch
-from conftest import ROOT, compose_config
+from conftest import compose_config, rejection
 from omegaconf import OmegaConf
 
 from waterair.agents.checkpoint import CheckpointError, policy_state, save_policy
@@ -267,30 +265,15 @@ def test_weights_that_do_not_fit_the_configured_network_are_a_clear_error(tmp_pa
 )
 def test_invalid_evaluation_config_exits_before_any_rollout_with_one_line(override, key, tmp_path):
     policy = write_policy(tmp_path / "policy.pt", observation_size=8)
-    process = subprocess.run(
-        [sys.executable, "evaluate.py", *EVAL_TINY, f"checkpoint={policy}", override, f"hydra.run.dir={tmp_path}"],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert process.returncode != 0
-    lines = process.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"error: {key} = "), process.stderr
+    overrides = [*EVAL_TINY, f"checkpoint={policy}", override, f"hydra.run.dir={tmp_path}"]
+    assert rejection("evaluate.py", overrides).startswith(f"error: {key} = ")
     assert not (tmp_path / "metrics.json").exists()
 
 
 def test_cli_missing_checkpoint_is_one_line(tmp_path):
     missing = tmp_path / "missing.pt"
-    process = subprocess.run(
-        [sys.executable, "evaluate.py", f"checkpoint={missing}", f"hydra.run.dir={tmp_path}"],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert process.returncode != 0
-    assert process.stderr.strip() == f"error: checkpoint {missing} does not exist"
+    line = rejection("evaluate.py", [f"checkpoint={missing}", f"hydra.run.dir={tmp_path}"])
+    assert line == f"error: checkpoint {missing} does not exist" and not any(tmp_path.iterdir())
 
 
 @pytest.mark.slow

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 import torch
-from conftest import ROOT, TINY, compose_config
+from conftest import ROOT, TINY, compose_config, rejection
 from omegaconf import OmegaConf
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
@@ -243,17 +243,13 @@ def test_a_sweep_with_a_failed_job_summarises_the_others_and_exits_with_one_line
     ],
 )
 def test_invalid_config_exits_before_training_with_one_line(override, key, tmp_path):
-    done = run_cli(override, f"hydra.run.dir={tmp_path}", timeout=120)
-    assert done.returncode != 0
-    message = done.stderr.strip().splitlines()
-    assert len(message) == 1 and message[0].startswith(f"error: {key}"), done.stderr
-    assert not (tmp_path / "checkpoints").exists()
+    assert rejection("train.py", [override, f"hydra.run.dir={tmp_path}"]).startswith(f"error: {key}")
+    assert not any(tmp_path.iterdir())
 
 
 def test_unknown_key_is_rejected(tmp_path):
-    done = run_cli("env.wnd=3", f"hydra.run.dir={tmp_path}", timeout=120)
-    assert done.returncode != 0
-    assert "wnd" in done.stderr and "Traceback" not in done.stderr
+    line = rejection("train.py", ["env.wnd=3", f"hydra.run.dir={tmp_path}"])
+    assert line.startswith("error: env.wnd is not a config key") and not any(tmp_path.iterdir())
 
 
 @pytest.mark.parametrize("resume", [None, "outputs/train/some-run"])

@@ -124,6 +124,11 @@ class EnvConfig:
 
     def __post_init__(self) -> None:
         check_int("env.num_envs", self.num_envs, 1, 2**24)
+        if not isinstance(self.compile_kernel, bool):  # a truthy 'auto' would compile silently
+            raise ValueError(
+                f"env.compile_kernel = {self.compile_kernel!r} is not allowed here; choose true or false "
+                "(train.py and evaluate.py decide auto from the frames they will run)"
+            )
         resolve_device(self.device, "env.device")  # cuda without a GPU is an error now
         check_choice("env.dtype", self.dtype, DTYPES)
         if self.seed is not None:
