@@ -1,5 +1,6 @@
 """Shared fixtures and helpers: the default geometry as tensors, Hydra configs composed from conf/."""
 
+import os
 from pathlib import Path
 
 import pytest
@@ -10,6 +11,9 @@ from omegaconf import OmegaConf
 from waterair.envs.config import EnvConfig
 from waterair.physics.channel import LinkGeometry
 from waterair.physics.surface import WaveSurface
+
+if os.environ.get("PYTEST_XDIST_WORKER"):  # workers share the cores: one torch thread each
+    torch.set_num_threads(1)
 
 ROOT = Path(__file__).resolve().parents[1]
 """The repository root (where train.py, evaluate.py and conf/ live)."""
