@@ -32,7 +32,7 @@ def sb3_ddpg(cfg: DictConfig, seed: int = 0):
 
     ratio = Fraction(cfg.collector.updates_per_frame).limit_denominator(64)  # 0.15625: 5 updates every 32 steps
     reward = Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True))
-    env = WaterAirGymEnv(env_config(cfg).replace(compile_kernel=False), reward=reward, seed=seed)
+    env = WaterAirGymEnv(env_config(cfg, compile_kernel=False), reward=reward, seed=seed)
     return DDPG(
         "MlpPolicy",
         env,
