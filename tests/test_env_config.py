@@ -94,3 +94,14 @@ def test_each_key_is_checked_exactly_once(monkeypatch):
 def test_an_aperture_the_optics_refuse_is_refused_by_the_config_in_one_line():
     with pytest.raises(ValueError, match=r"^env\.aperture_diameter = 2 is out of range; allowed \(0, 1\] m$"):
         EnvConfig(aperture_diameter=2)
+
+
+@pytest.mark.parametrize("value", ["auto", "true", 1])
+def test_compile_kernel_is_true_or_false_and_the_yamls_auto_is_refused_not_compiled(value):
+    # 'auto' is decided by train.py and evaluate.py from the frames they run; a truthy string reaching
+    # the env would compile it silently
+    with pytest.raises(
+        ValueError, match=rf"^env.compile_kernel = {re.escape(repr(value))} is not allowed here; choose"
+    ):
+        EnvConfig(compile_kernel=value)
+    assert EnvConfig(compile_kernel=True).compile_kernel is True and EnvConfig().compile_kernel is False
