@@ -53,19 +53,15 @@ def calm(surface: WaveSurface) -> WaveSurface:
     return still
 
 
-ENTRY_POINTS = {"train.py": "config", "evaluate.py": "evaluate"}
-"""Each entry point's config name."""
-
-
 def rejection(script: str, overrides) -> str:
     """The one line ``script`` (train.py or evaluate.py) exits with for ``overrides``: its preflight, run
     in-process exactly as its ``__main__`` runs it first (tests/test_cli.py runs two as processes)."""
     from waterair.cli import evaluation, training
     from waterair.cli.preflight import preflight
 
-    check = {"train.py": training.check, "evaluate.py": evaluation.check}[script]
+    config_name, check = {"train.py": ("config", training.check), "evaluate.py": ("evaluate", evaluation.check)}[script]
     with pytest.raises(SystemExit) as stop:
-        preflight(ENTRY_POINTS[script], list(overrides), check)
+        preflight(config_name, list(overrides), check)
     line = str(stop.value.code)
     assert line.startswith("error: ") and "\n" not in line, line
     return line
