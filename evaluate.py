@@ -23,5 +23,5 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
-    preflight("evaluate", sys.argv[1:], evaluation.check)
+    sys.argv[1:] = preflight("evaluate", sys.argv[1:], evaluation.check)
     main()

@@ -1,7 +1,7 @@
 """Train a beam-alignment agent: ``python train.py [group=option] [key=value ...]``.
 
-Examples: ``python train.py env.wind=8 agent=td3``, ``python train.py resume=outputs/train/DATE/TIME``,
-``python train.py -m env.wind=8,12 agent.gamma=0,0.2 hydra/launcher=joblib``. See docs/training.md.
+Examples: ``python train.py env.sea.wind=8 agent=td3``, ``python train.py resume=outputs/train/DATE/TIME``,
+``python train.py -m env.sea.wind=8,12 agent.gamma=0,0.2 hydra/launcher=joblib``. See docs/training.md.
 The whole command line is checked before Hydra creates the run directory.
 """
 
@@ -24,5 +24,5 @@ def main(cfg: DictConfig) -> float:
 
 
 if __name__ == "__main__":
-    preflight("config", sys.argv[1:], training.check)
+    sys.argv[1:] = preflight("config", sys.argv[1:], training.check)
     main()

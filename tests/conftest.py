@@ -20,8 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 TINY = [
     "env.num_envs=8",
-    "env.n_freq=16",
-    "env.n_dir=8",
+    "env.sea.n_freq=16",
+    "env.sea.n_dir=8",
     "env.max_steps=50",
     "collector.frames_per_batch=400",
     "collector.init_random_frames=400",

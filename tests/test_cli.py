@@ -11,7 +11,7 @@ from conftest import ROOT, compose_config, rejection
 
 from waterair.cli import launch, training
 from waterair.cli.console import quiet_dependencies
-from waterair.cli.preflight import jobs, on_a_cpu, one_line, preflight
+from waterair.cli.preflight import jobs, on_a_cpu, one_line, preflight, renamed
 
 SHIPPED = ROOT / "waterair" / "assets" / "default.pt"
 
@@ -73,8 +73,39 @@ def test_a_rejected_command_exits_non_zero_with_one_line_on_stderr(script, overr
 
 
 def test_a_sweep_is_checked_job_by_job_before_it_starts():
-    assert jobs(["-m", "env.wind=8,12", "agent=td3"]) == [["env.wind=8", "agent=td3"], ["env.wind=12", "agent=td3"]]
-    assert jobs(["env.wind=8"]) == [["env.wind=8"]]
+    assert jobs(["-m", "env.sea.wind=8,12", "agent=td3"]) == [
+        ["env.sea.wind=8", "agent=td3"],
+        ["env.sea.wind=12", "agent=td3"],
+    ]
+    assert jobs(["env.sea.wind=8"]) == [["env.sea.wind=8"]]
+
+
+def test_the_first_releases_env_keys_and_sea_options_are_rewritten_with_a_note(capsys):
+    old = [
+        "-m",
+        "env.wind=4,12",
+        "+env.aperture_diameter=0.1",
+        "env/spectrum=paper,ocean",
+        "env.num_envs=4",
+        "envx.wind=1",
+    ]
+    new = ["-m", "env.sea.wind=4,12", "+env.optics.aperture_diameter=0.1", "env/spectrum=jonswap,elfouhaily"]
+    assert renamed(old) == [*new, "env.num_envs=4", "envx.wind=1"]
+    notes = capsys.readouterr().err.splitlines()
+    pairs = zip(old[1:4], new[1:], strict=True)
+    assert notes == [f'note: {a} is {b} in this version (docs/environment.md, "Renamed keys")' for a, b in pairs]
+    assert renamed(["env.windy=3", "env.sea.wind=3"]) == ["env.windy=3", "env.sea.wind=3"]  # unknown and new keys stay
+
+
+def test_an_old_command_line_runs_as_the_new_one_and_its_errors_name_the_new_key(capsys):
+    assert preflight("config", ["env.offset_ratio=0.2", "env/spectrum=ocean"], training.check) == [
+        "env.geometry.offset_ratio=0.2",
+        "env/spectrum=elfouhaily",
+    ]
+    assert rejection("train.py", ["env.wind=-3"]) == "error: env.sea.wind = -3 is out of range; allowed (0, 60] m/s"
+    assert rejection("train.py", ["env.sea.gamma=2", "env/spectrum=elfouhaily"]).startswith(
+        "error: env.sea.gamma is not a config key"
+    )
 
 
 def test_hydra_messages_become_one_line():

@@ -31,7 +31,7 @@ def test_check_env_specs(num_envs, action_mode, extras):
 def test_one_line_construction_uses_defaults():
     env = WaterAirEnv(num_envs=4, wind=8.0, device="cpu", **SMALL_SEA)
     assert env.batch_size == (4,)
-    assert env.config.wind == 8.0 and env.config.fetch == 2.0e4 and env.config.max_steps == 500
+    assert env.config.sea.wind == 8.0 and env.config.sea.fetch == 2.0e4 and env.config.max_steps == 500
 
 
 @pytest.mark.slow
@@ -179,7 +179,7 @@ def test_spot_extra_is_zero_without_light_and_centred_when_aligned():
         ({"dt": 0.0}, "env.dt"),
         ({"dt": -0.05}, "env.dt"),
         ({"action_mode": "velocity"}, "env.action_mode"),
-        ({"wind": -1.0}, "env.wind"),
+        ({"sea": {"wind": -1.0}}, "env.sea.wind"),
         ({"max_tilt_deg": 95.0}, "env.max_tilt_deg"),
         ({"observation_extras": ("camera",)}, "env.observation_extras"),
         ({"wind_range": (5.0, 2.0)}, "env.wind_range[1]"),
@@ -187,7 +187,7 @@ def test_spot_extra_is_zero_without_light_and_centred_when_aligned():
         ({"offset_values": (0.1, 11.0)}, "env.offset_values[1]"),
         ({"num_envs": 6, "replicas": 4}, "env.replicas"),
         ({"solver": "bisection"}, "env.solver"),
-        ({"half_fov": 2.0}, "env.half_fov"),
+        ({"optics": {"half_fov": 2.0}}, "env.optics.half_fov"),
     ],
 )
 def test_config_errors_name_key_value_and_range(kwargs, key):

@@ -1,7 +1,9 @@
 """The env group's keys are each checked once, where they are defined, against the range docs/environment.md
-documents, and an error names the key path (``env.<key>``): a value valid for the env is never
-rejected deeper down (in the physics objects, the channel model or the link budget)."""
+documents, and an error names the key path (``env.<key>``, ``env.sea.<key>``): a value valid for the env is
+never rejected deeper down (in the physics objects, the channel model or the link budget). The flat keys of
+the first releases still build the same config."""
 
+import dataclasses
 import math
 import re
 import sys
@@ -13,9 +15,11 @@ from conftest import ROOT
 from waterair.core import validation
 from waterair.envs.config import EnvConfig
 from waterair.envs.link import link_budget
+from waterair.physics.channel import LinkGeometry, Transceiver
+from waterair.physics.sea import ElfouhailySea, JonswapSea
 
 NUMBER = r"[-+]?(?:\d+(?:\.\d*)?(?:e[-+]?\d+)?|π/2)"
-ROW = re.compile(rf"^\| `(\w+)` \| [^|]* \| [^|]* \| (?:odd, )?([\[(])({NUMBER}), ({NUMBER})([\])])")
+ROW = re.compile(rf"^\| `([\w.]+)` \| [^|]* \| [^|]* \| (?:odd, )?([\[(])({NUMBER}), ({NUMBER})([\])])")
 
 
 def documented_ranges() -> dict[str, tuple[float, float, bool, bool]]:
@@ -31,15 +35,46 @@ def documented_ranges() -> dict[str, tuple[float, float, bool, bool]]:
 
 
 RANGES = documented_ranges()
-INTEGER_KEYS = {name for name, field in EnvConfig.__dataclass_fields__.items() if field.type == "int"}
+GROUPS = {"sea": (JonswapSea, ElfouhailySea), "geometry": (LinkGeometry,), "optics": (Transceiver,)}
+
+
+def field_type(key: str) -> str:
+    """The annotation of ``key``'s field: on EnvConfig, or on the physics object its group holds."""
+    if "." not in key:
+        return EnvConfig.__dataclass_fields__[key].type
+    group, name = key.split(".")
+    return next(dataclasses.fields(kind)[i].type for kind in GROUPS[group]
+                for i, field in enumerate(dataclasses.fields(kind)) if field.name == name)  # fmt: skip
+
+
+INTEGER_KEYS = {key for key in RANGES if field_type(key) == "int"}
+SEA_OF = {"sea.n_wavenumbers": "elfouhaily", "sea.wavenumber_cutoff": "elfouhaily"}
+"""The keys only one sea has, and that sea (the default sea is JONSWAP)."""
 
 
 def test_the_documented_ranges_cover_the_physics_keys():
-    assert {"wind", "aperture_diameter", "lattice_span", "montecarlo_rays", "divergence", "tx_depth"} <= set(RANGES)
+    physics = {"sea.wind", "optics.aperture_diameter", "lattice_span", "montecarlo_rays", "optics.divergence"}
+    assert physics | {"geometry.tx_depth", "sea.n_wavenumbers", "sea.gamma", "optics.attenuation"} <= set(RANGES)
+    assert {"sea.n_dir", "lattice_nodes", "max_steps"} <= INTEGER_KEYS and "sea.wind" not in INTEGER_KEYS
+
+
+def config_with(key: str, value) -> EnvConfig:
+    """EnvConfig with ``key`` (a path such as ``sea.wind``) set to ``value``, from a mapping as Hydra gives it."""
+    if "." not in key:
+        return EnvConfig.from_mapping({key: value})
+    group, name = key.split(".")
+    keys = {name: value, **({"spectrum": SEA_OF[key]} if key in SEA_OF else {})}
+    return EnvConfig.from_mapping({group: keys})
+
+
+def value_at(config: EnvConfig, key: str):
+    for part in key.split("."):
+        config = getattr(config, part)
+    return config
 
 
 def accepted(key: str, value) -> EnvConfig:
-    config = EnvConfig(**{key: value})
+    config = config_with(key, value)
     link_budget(None, config)  # the budget takes the env's optics without checking them again
     return config
 
@@ -56,10 +91,10 @@ def test_every_documented_value_is_accepted_and_the_next_one_refused_naming_the_
     for value in (inside_low, inside_high):
         if key == "lattice_nodes" and value % 2 == 0:
             value -= 1
-        assert getattr(accepted(key, value), key) == value
+        assert value_at(accepted(key, value), key) == value
     outside = int(high) + 1 if integer else (high if not high_closed else high + step)
-    with pytest.raises(ValueError, match=rf"^env\.{key} = "):
-        EnvConfig(**{key: outside})
+    with pytest.raises(ValueError, match=rf"^env\.{re.escape(key)} = "):
+        config_with(key, outside)
 
 
 def test_each_key_is_checked_exactly_once(monkeypatch):
@@ -83,17 +118,22 @@ def test_each_key_is_checked_exactly_once(monkeypatch):
         for name, check in checks.items():
             if getattr(module, name, None) is check:
                 monkeypatch.setattr(module, name, counted(check))
-    for overrides in ({}, {"channel": "full", "spectrum": "elfouhaily"}, {"channel": "montecarlo"}):
+    given = {"geometry": {"tx_depth": 10.0}, "optics": {"aperture_diameter": 0.05}}  # as Hydra gives the groups
+    for overrides in (
+        {"sea": {"wind": 12.0}},
+        {"channel": "full", "sea": {"spectrum": "elfouhaily", "wind": 12.0}},
+        {"channel": "montecarlo", "sea": {"wind": 12.0}},
+    ):
         calls.clear()
-        config = EnvConfig(**overrides)
-        config.sea(), config.transceiver(), config.channel_model(), link_budget(None, config)
+        config = EnvConfig.from_mapping({**given, **overrides})
+        config.channel_model(), link_budget(None, config)
         assert calls["aperture_diameter"] == 1 and calls["wind"] == 1, calls
         assert max(calls.values()) == 1, {key: count for key, count in calls.items() if count > 1}
 
 
 def test_an_aperture_the_optics_refuse_is_refused_by_the_config_in_one_line():
-    with pytest.raises(ValueError, match=r"^env\.aperture_diameter = 2 is out of range; allowed \(0, 1\] m$"):
-        EnvConfig(aperture_diameter=2)
+    with pytest.raises(ValueError, match=r"^env\.optics\.aperture_diameter = 2 is out of range; allowed \(0, 1\] m$"):
+        EnvConfig(optics={"aperture_diameter": 2})
 
 
 @pytest.mark.parametrize("value", ["auto", "true", 1])
@@ -105,3 +145,62 @@ def test_compile_kernel_is_true_or_false_and_the_yamls_auto_is_refused_not_compi
     ):
         EnvConfig(compile_kernel=value)
     assert EnvConfig(compile_kernel=True).compile_kernel is True and EnvConfig().compile_kernel is False
+
+
+def flat(config: EnvConfig) -> dict:
+    """``config`` as the first releases wrote it: every physics key flat beside the interface keys."""
+    values = config.to_mapping()
+    for group in ("sea", "geometry", "optics"):
+        values.update(values.pop(group))
+    return values
+
+
+def test_the_flat_keys_of_old_configs_build_the_same_config():
+    nested = EnvConfig.from_mapping(
+        {"sea": {"spectrum": "elfouhaily", "wind": 7.0, "n_dir": 16}, "geometry": {"offset_ratio": 0.3}, "num_envs": 4}
+    )
+    old = flat(nested) | {"gamma": 3.3, "n_freq": 64}  # old configs listed both seas' own keys
+    assert EnvConfig.from_mapping(old) == nested
+    assert nested.replace(wind=9.0).sea == dataclasses.replace(nested.sea, wind=9.0)
+    assert nested.replace(sea={"wind": 9.0}) == nested.replace(wind=9.0)
+    assert nested.replace(aperture_diameter=0.1).optics.aperture_diameter == 0.1
+
+
+def test_naming_another_sea_keeps_the_conditions_and_takes_that_seas_own_discretisation():
+    ocean = EnvConfig.from_mapping({"sea": {"spectrum": "elfouhaily", "wind": 7.0, "n_wavenumbers": 12}})
+    paper = ocean.replace(sea={"spectrum": "jonswap"})
+    assert paper.sea == JonswapSea(wind=7.0)
+    assert ocean.replace(spectrum="jonswap") == paper
+
+
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"sea": {"spectrum": "elfouhaily", "gamma": 2.0}}, r"^env\.sea\.gamma is not a key of the elfouhaily sea"),
+        ({"geometry": {"depth": 3.0}}, r"^env\.geometry\.depth is not a known key; allowed: tx_depth, "),
+        ({"optics": 0.05}, r"^env\.optics = 0\.05 must be a mapping of its keys"),
+        ({"sea": {"spectrum": "pierson"}}, r"^env\.sea\.spectrum = 'pierson' is not allowed; choose one of jonswap"),
+    ],
+)
+def test_a_physics_group_names_the_key_path_of_what_it_refuses(values, message):
+    with pytest.raises(ValueError, match=message):
+        EnvConfig.from_mapping(values)
+
+
+def test_the_yaml_states_each_physics_default_the_physics_object_has():
+    # one default per key: conf/env/ restates the physics objects' defaults, never different ones
+    from conftest import compose_config
+    from omegaconf import OmegaConf
+
+    for spectrum, kind in (("jonswap", JonswapSea), ("elfouhaily", ElfouhailySea)):
+        env = OmegaConf.to_container(compose_config("config", [f"env/spectrum={spectrum}"]).env, resolve=True)
+        sea = {key: value for key, value in env["sea"].items() if key != "spectrum"}
+        assert sea.keys() == {f.name for f in dataclasses.fields(kind)} - {"flat"}
+        composed = {
+            "sea": kind(**sea),
+            "geometry": LinkGeometry(**env["geometry"]),
+            "optics": Transceiver(**env["optics"]),
+        }
+        assert composed == {"sea": kind(), "geometry": LinkGeometry(), "optics": Transceiver()}
+        channel = ("lattice_nodes", "lattice_span", "montecarlo_rays", "montecarlo_facets")
+        assert {key: env[key] for key in channel} == {key: getattr(EnvConfig(), key) for key in channel}

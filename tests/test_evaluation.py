@@ -22,8 +22,8 @@ from waterair.training.export import CHECK, export_policy, short_check
 
 TRAIN_TINY = [
     "env.num_envs=8",
-    "env.n_freq=16",
-    "env.n_dir=8",
+    "env.sea.n_freq=16",
+    "env.sea.n_dir=8",
     "env.max_steps=50",
     "total_frames=800",
     "collector.frames_per_batch=400",
@@ -39,8 +39,8 @@ TRAIN_TINY = [
     "env.compile_kernel=false",
 ]
 EVAL_TINY = [
-    "env.n_freq=16",
-    "env.n_dir=8",
+    "env.sea.n_freq=16",
+    "env.sea.n_dir=8",
     "env.compile_kernel=false",
     "bootstrap.resamples=200",
     "scenarios.S1.realisations=3",

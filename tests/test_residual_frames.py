@@ -13,7 +13,7 @@ from waterair.envs.controllers import AoATracker
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.rewards import Reward
 
-SMALL = dict(num_envs=6, n_freq=16, n_dir=8, seed=4)
+SMALL = dict(num_envs=6, sea={"n_freq": 16, "n_dir": 8}, seed=4)
 SENSING = dict(
     observation_extras=("spot", "spot_valid", "geometry"),
     latency_steps=1,
@@ -125,7 +125,7 @@ def test_the_pointing_term_is_the_misalignment_of_both_ends_from_the_path():
     steps = env.rollout(30, lambda td: td.set("action", actions[int(env.steps[0])]))
     nxt = steps["next"]
     valid = nxt["path_valid"].double()
-    misalignment = (nxt["alpha_d"] / config.divergence + nxt["alpha_a"] / config.half_fov) * valid
+    misalignment = (nxt["alpha_d"] / config.optics.divergence + nxt["alpha_a"] / config.optics.half_fov) * valid
     intensity = nxt["intensity"]
     le = torch.log1p(10 * intensity) + torch.log10(100 * intensity.clamp(min=1e-3)) + torch.exp(0.7 * intensity)
     expected = 0.1 * le

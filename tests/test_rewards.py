@@ -13,7 +13,7 @@ from waterair.physics.link import LinkBudget, fec_power, received_power, snr
 from waterair.training.builders import make_env
 from waterair.training.config import validate
 
-SMALL_ENV = ["env.num_envs=4", "env.n_freq=16", "env.n_dir=8", "env.compile_kernel=false"]
+SMALL_ENV = ["env.num_envs=4", "env.sea.n_freq=16", "env.sea.n_dir=8", "env.compile_kernel=false"]
 
 
 @given(
@@ -109,7 +109,9 @@ def test_reward_snr_from_the_command_line_steps_the_env_on_the_links_budget():
     steps = env.rollout(3, break_when_any_done=False)
     nxt = steps["next"]
     config = env.base_env.config
-    misalignment = (nxt["alpha_d"] / config.divergence + nxt["alpha_a"] / config.half_fov) * nxt["path_valid"]
+    misalignment = (nxt["alpha_d"] / config.optics.divergence + nxt["alpha_a"] / config.optics.half_fov) * nxt[
+        "path_valid"
+    ]
     expected = reward.of_gain(nxt["gain"]) - 0.05 * misalignment
     torch.testing.assert_close(nxt["reward"].squeeze(-1), expected)
     with pytest.raises(ValueError, match=r"^link.power_w = -1"):

@@ -24,6 +24,7 @@ from waterair.evaluation.policies import load_policy
 from waterair.evaluation.runner import compare_policies
 from waterair.evaluation.scenarios import Scenario
 from waterair.training import train
+from waterair.training.builders import env_config
 from waterair.training.resume import plan_resume
 
 SCALARS = {
@@ -234,7 +235,7 @@ def test_a_sweep_with_a_failed_job_summarises_the_others_and_exits_with_one_line
 @pytest.mark.parametrize(
     "override,key",
     [
-        ("env.wind=-3", "env.wind = -3"),
+        ("env.sea.wind=-3", "env.sea.wind = -3"),
         ("agent.gamma=1.5", "agent.gamma = 1.5"),
         ("buffer.batch_size=0", "buffer.batch_size = 0"),
         ("reward.b=0", "reward.b = 0"),
@@ -291,7 +292,7 @@ def test_a_short_run_with_each_preset_trains_reloads_and_evaluates(run, tmp_path
     config = EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
     actor = policy.actor(cfg.actor, config.observation_size)
     # The reloaded policy, evaluated on the closing evaluation's seas, scores what the run scored.
-    point = ((cfg.env.wind, cfg.env.offset_ratio, cfg.env.offset_azimuth_deg),)
+    point = ((cfg.env.sea.wind, cfg.env.geometry.offset_ratio, cfg.env.geometry.offset_azimuth_deg),)
     scenario = Scenario("check", "reload", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
     reloaded = compare_policies(config, {"reloaded": actor}, scenario)["reloaded"]
     for key in ("ratio_to_ub", "mean_gain"):
@@ -303,5 +304,19 @@ def test_resume_compares_only_the_keys_a_group_option_sets(tmp_path):
     same = [f"resume={tmp_path}", "env/sea=moderate"]  # restating the run's own sea is no change
     assert plan_resume(compose_cfg(*same), same).frames_done == 0
     other = [f"resume={tmp_path}", "env/sea=rough"]
-    with pytest.raises(ValueError, match=r"^resume: env/sea=rough changes env.wind \(the run has 12.0\)"):
+    with pytest.raises(ValueError, match=r"^resume: env/sea=rough changes env.sea.wind \(the run has 12.0\)"):
         plan_resume(compose_cfg(*other), other)
+
+
+def test_a_run_of_the_first_releases_with_flat_env_keys_resumes_with_its_keys_in_their_groups(tmp_path):
+    config = OmegaConf.to_container(compose_cfg("seed=3"), resolve=True)
+    for group in ("sea", "geometry", "optics"):
+        config["env"].update(config["env"].pop(group))  # how config.yaml read before the groups
+    config["env"].update(n_wavenumbers=48, wavenumber_cutoff=10.0)  # and with the other sea's keys
+    (tmp_path / "config.yaml").write_text(OmegaConf.to_yaml(config))
+    overrides = [f"resume={tmp_path}", "env/sea=moderate"]
+    plan = plan_resume(compose_cfg(*overrides), overrides)
+    assert plan.config.env.sea.wind == 12.0 and "n_wavenumbers" not in plan.config.env.sea
+    assert env_config(plan.config, compile_kernel=False) == env_config(compose_cfg("seed=3"), compile_kernel=False)
+    with pytest.raises(ValueError, match=r"^resume: env.sea.wind=8 changes env.sea.wind \(the run has 12.0\)"):
+        plan_resume(compose_cfg(f"resume={tmp_path}", "env.sea.wind=8"), [f"resume={tmp_path}", "env.sea.wind=8"])

@@ -27,7 +27,7 @@ SAMPLED_STEPS = 20
 
 
 SEAS = {"paper": {"spectrum": "jonswap"}, "ocean": {"spectrum": "elfouhaily", "n_dir": 16}}
-"""The seas of ``env/spectrum=paper|ocean`` (conf/env/spectrum)."""
+"""The seas of ``env/spectrum=jonswap|elfouhaily`` (conf/env/spectrum), by short names."""
 
 
 def worker(

@@ -3,7 +3,7 @@
 Path-solve time per batch (Newton cold and warm start, centroid), surface evaluations per
 second, the "sin+cos floor" (one ``sin`` and one ``cos`` over ``[B, K]``) and the ratio of a Newton
 solve to (evaluations per solve × floor). Beside the paper's sea, one order-2 evaluation of the
-measured-slope sea (``env/spectrum=ocean``, :data:`OCEAN`) is timed in the same run.
+measured-slope sea (``env/spectrum=elfouhaily``, :data:`OCEAN`) is timed in the same run.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from waterair.physics import LinkGeometry, SeaState, WaveSurface, solve_path
 DT = 0.05
 """Time between a cold solve and the warm-started one (s), the environment's step."""
 OCEAN = {"spectrum": "elfouhaily", "n_wavenumbers": 48, "n_dir": 16, "wavenumber_cutoff": 10.0}
-"""The measured-slope sea of ``env/spectrum=ocean`` (its harmonics, not its wind, which is the suite's)."""
+"""The measured-slope sea of ``env/spectrum=elfouhaily`` (its harmonics, not its wind, which is the suite's)."""
 
 
 def bench_physics(

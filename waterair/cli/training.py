@@ -76,7 +76,7 @@ def summary(cfg: DictConfig, run_dir: Path, metrics: dict[str, float], seconds: 
             f"Run directory: {run_dir}",
             f"Frames: {metrics['frames']:,} ({metrics['updates']:,} updates, {metrics['episodes']:,} episodes) "
             f"in {minutes} min {rest} s",
-            f"Greedy policy at U10 = {cfg.env.wind:g} m/s, offset {cfg.env.offset_ratio:.0%} "
+            f"Greedy policy at U10 = {cfg.env.sea.wind:g} m/s, offset {cfg.env.geometry.offset_ratio:.0%} "
             f"({cfg.eval.realisations} seas × {cfg.eval.steps} steps): {ratio['agent']:.3f} of the upper bound "
             f"({beside}flat-sea Snell {ratio['flat_snell']:.3f}, straight facing {ratio['straight_facing']:.3f})",
             f"Its link ({_link_name(cfg)}): outage {metrics['agent/outage']:.2%} of the steps, mean BER "

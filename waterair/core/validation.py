@@ -23,7 +23,7 @@ def check_range(
     """Return ``value`` if it lies in the interval, else raise a one-line ``ValueError``.
 
     Args:
-        name: the parameter or config key, e.g. ``"env.wind"``.
+        name: the parameter or config key, e.g. ``"env.sea.wind"``.
         value: the value to check (a real number; NaN is always rejected).
         low, high: interval bounds.
         low_open, high_open: whether each bound is excluded.

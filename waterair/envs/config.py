@@ -1,8 +1,13 @@
 """Validated configuration of :class:`waterair.envs.env.WaterAirEnv` (the ``env`` config group).
 
-Every key is flat so that a Hydra override reads ``env.wind=8``; docs/environment.md lists each
-key with its unit, default and allowed range. Validation happens once, here, and every error
-names the key (``env.<name>``), the value and the allowed range.
+The physics is held as the physics' own objects, one nested group each: the sea (``env.sea.wind``,
+a :class:`~waterair.physics.sea.JonswapSea` or :class:`~waterair.physics.sea.ElfouhailySea`), the
+link's geometry (``env.geometry.offset_ratio``, :class:`~waterair.physics.channel.LinkGeometry`) and
+the optics (``env.optics.aperture_diameter``, :class:`~waterair.physics.channel.Transceiver`). Each
+physics value is validated once, where it is defined; the interface keys (``env.dt``, ...) are
+validated here. Every error names the key path (``env.sea.wind``), the value and the allowed range;
+docs/environment.md lists each key with its unit, default and range. The flat keys of the first
+releases (``env.wind``) are folded into their groups (:mod:`waterair.envs.legacy`).
 """
 
 from __future__ import annotations
@@ -15,8 +20,17 @@ from dataclasses import dataclass
 
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
-from waterair.physics.channel import ChannelModel, LinkGeometry, Transceiver, channel_model
-from waterair.physics.sea import SPECTRA, SeaState, sea_state
+from waterair.envs.legacy import SHARED_SEA_KEYS, as_mapping, nest
+from waterair.physics.channel import (
+    LATTICE_NODES,
+    LATTICE_SPAN,
+    ChannelModel,
+    LinkGeometry,
+    MonteCarlo,
+    Transceiver,
+    channel_model,
+)
+from waterair.physics.sea import JonswapSea, SeaState, sea_state
 
 ACTION_MODES = ("absolute", "delta", "residual")
 RESIDUAL_BASES = ("flat_snell", "aoa_tracker")
@@ -55,35 +69,16 @@ class EnvConfig:
     device: str = "cpu"  # cpu, cuda, or auto (cuda when available)
     dtype: str = "float32"
     seed: int | None = None  # None: nondeterministic
-    # sea (docs/model.md §1); presets env/spectrum=paper|ocean and env/sea=calm|moderate|rough
-    wind: float = 12.0  # U10, m/s
-    fetch: float = 2.0e4  # m
-    gamma: float = 3.3
-    wind_direction_deg: float = 0.0
-    n_freq: int = 64  # jonswap: frequency bins over [0.6, 6] ω_p
-    n_dir: int = 32
-    amplitude: str = "standard"  # standard | paper
-    spectrum: str = "jonswap"  # jonswap (the paper's sea) | elfouhaily (the measured-slope sea); env/spectrum=
-    n_wavenumbers: int = 48  # elfouhaily: log-spaced wavenumber bins from 0.4 k_p to the cutoff
-    wavenumber_cutoff: float = 10.0  # elfouhaily: rad/m; shorter waves are carried as unresolved slopes
-    # geometry (docs/model.md §0)
-    tx_depth: float = 10.0  # m
-    rx_height: float = 10.0  # m
-    offset_ratio: float = 0.1  # horizontal offset / vertical distance
-    offset_azimuth_deg: float = 0.0
-    # optics (docs/model.md §4)
-    wavelength: float = 520e-9  # m
-    divergence: float = 0.05  # ω_D, rad
-    half_fov: float = 0.17  # ω_A, rad
-    concentrator_index: float = 1.0
-    water: str = "clear_ocean"
+    # the physics, each validated where it is defined (docs/model.md); a mapping of its keys is built into it
+    sea: SeaState = JonswapSea()  # env.sea.*; presets env/spectrum=jonswap|elfouhaily, env/sea=calm|moderate|rough
+    geometry: LinkGeometry = LinkGeometry()  # env.geometry.*: where the ends are (docs/model.md §0)
+    optics: Transceiver = Transceiver()  # env.optics.*: the ends' optics (docs/model.md §4-§5)
     # channel (docs/model.md §4)
     channel: str = "single_path"  # single_path | full | montecarlo (evaluation only: slow)
-    aperture_diameter: float = 0.05  # m, the receiver's entrance aperture
-    lattice_nodes: int = 7  # full channel on a two-scale sea: nodes per axis of the surface lattice
-    lattice_span: float = 4.0  # full channel: the lattice's half-width, in standard deviations of its Gaussian
-    montecarlo_rays: int = 20_000  # montecarlo channel: surface rays per link and step
-    montecarlo_facets: int = 64  # montecarlo channel: unresolved-slope draws per surface ray
+    lattice_nodes: int = LATTICE_NODES  # full channel on a two-scale sea: nodes per axis of the surface lattice
+    lattice_span: float = LATTICE_SPAN  # full channel: the lattice's half-width, in standard deviations of its Gaussian
+    montecarlo_rays: int = MonteCarlo.rays  # montecarlo channel: surface rays per link and step
+    montecarlo_facets: int = MonteCarlo.facets  # montecarlo channel: unresolved-slope draws per surface ray
     # dynamics and interface (docs/environment.md)
     dt: float = 0.05  # s
     max_steps: int = 500  # steps per episode (truncation)
@@ -123,6 +118,9 @@ class EnvConfig:
     compile_kernel: bool = False
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "sea", _physics("sea", self.sea, SeaState, _build_sea))
+        object.__setattr__(self, "geometry", _physics("geometry", self.geometry, LinkGeometry, LinkGeometry))
+        object.__setattr__(self, "optics", _physics("optics", self.optics, Transceiver, Transceiver))
         check_int("env.num_envs", self.num_envs, 1, 2**24)
         if not isinstance(self.compile_kernel, bool):  # a truthy 'auto' would compile silently
             raise ValueError(
@@ -165,7 +163,7 @@ class EnvConfig:
                 f"env.replicas = {self.replicas} is not allowed; it must divide env.num_envs = {self.num_envs}"
             )
         check_choice("env.solver", self.solver, ENV_SOLVERS)
-        self._physics  # noqa: B018  (the physics objects validate the physics keys, once)
+        self.channel_model()  # validates the channel's settings, once
         if self.channel != "single_path" and self.solver == "centroid":
             raise ValueError(
                 f"env.solver = 'centroid' only works with env.channel = 'single_path' (got {self.channel!r}); "
@@ -202,90 +200,59 @@ class EnvConfig:
 
     @classmethod
     def from_mapping(cls, values: Mapping) -> EnvConfig:
-        """Build from a plain mapping (e.g. a resolved Hydra ``env`` group); unknown keys are errors."""
+        """Build from a plain mapping (e.g. a resolved Hydra ``env`` group); unknown keys are errors.
+
+        The physics groups (``sea``, ``geometry``, ``optics``) are mappings of their keys or the objects
+        themselves; the flat keys of the first releases (``wind``) are folded into them.
+        """
+        values = nest(values)
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(values) - known)
         if unknown:
             raise ValueError(f"env.{unknown[0]} is not a known key; allowed: {', '.join(sorted(known))}")
         return cls(**{k: _plain(v) for k, v in values.items()})
 
+    def to_mapping(self) -> dict:
+        """The keys that rebuild this config, the physics groups as nested mappings (the ``env`` group's shape)."""
+        values = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        return {key: as_mapping(value) if key in PHYSICS else value for key, value in values.items()}
+
     def replace(self, **changes) -> EnvConfig:
-        """A copy with ``changes`` applied (validated; unknown keys are errors)."""
-        return EnvConfig.from_mapping({**{f.name: getattr(self, f.name) for f in dataclasses.fields(self)}, **changes})
+        """A copy with ``changes`` applied (validated; unknown keys are errors).
 
-    def sea(self) -> SeaState:
-        """The sea these keys describe (built and validated once per config)."""
-        return self._physics["sea"]
-
-    def link(self) -> LinkGeometry:
-        """Where the ends are (built and validated once per config)."""
-        return self._physics["link"]
-
-    def transceiver(self) -> Transceiver:
-        """The ends' optics (built and validated once per config)."""
-        return self._physics["optics"]
+        A physics group given as a mapping changes only the keys it names (``sea={"wind": 8}``, or the flat
+        ``wind=8``); one that names another sea keeps the shared keys and takes that sea's own defaults.
+        """
+        current, changes = self.to_mapping(), nest(changes)
+        for group in PHYSICS:
+            given = changes.get(group)
+            if not isinstance(given, Mapping):
+                continue
+            base = current[group]
+            if group == "sea" and given.get("spectrum", base["spectrum"]) != base["spectrum"]:
+                base = {key: base[key] for key in SHARED_SEA_KEYS}
+            changes[group] = {**base, **given}
+        return EnvConfig.from_mapping({**current, **changes})
 
     def channel_model(self) -> ChannelModel:
         """The channel model ``channel`` names, for this sea and these optics (docs/environment.md, "Channel")."""
-        return self._physics["channel"]
+        return self._channel
 
     @functools.cached_property
-    def _physics(self) -> dict:
-        """The physics objects of these keys, each validated where it is defined; errors name ``env.<key>``."""
-        built: dict = {}
-        steps = (
-            ("sea", self._sea),
-            ("link", self._link),
-            ("optics", self._transceiver),
-            ("channel", lambda: self._channel(built["optics"], built["sea"])),
-        )
-        for name, build in steps:
-            try:
-                built[name] = build()
-            except ValueError as error:
-                raise ValueError(f"env.{error}") from None
-        return built
-
-    def _sea(self) -> SeaState:
-        """The sea ``spectrum`` names, from the keys it has (a JONSWAP sea reads no wavenumber keys, and so on)."""
-        if self.spectrum not in SPECTRA:
-            return sea_state(self.spectrum)  # refuses the name
-        shared = {field.name for field in dataclasses.fields(SeaState)}
-        for name, kind in SPECTRA.items():  # the other seas' own keys are checked too, never read
-            own = {field.name for field in dataclasses.fields(kind)} - shared
-            if name != self.spectrum:
-                kind.check_own_keys(**{key: getattr(self, key) for key in own})  # type: ignore[attr-defined]
-        keys = {field.name for field in dataclasses.fields(SPECTRA[self.spectrum])} - {"flat"}
-        return sea_state(self.spectrum, **{key: getattr(self, key) for key in keys})
-
-    def _link(self) -> LinkGeometry:
-        return LinkGeometry(
-            tx_depth=self.tx_depth,
-            rx_height=self.rx_height,
-            offset_ratio=self.offset_ratio,
-            offset_azimuth_deg=self.offset_azimuth_deg,
-        )
-
-    def _transceiver(self) -> Transceiver:
-        return Transceiver(
-            wavelength=self.wavelength,
-            divergence=self.divergence,
-            half_fov=self.half_fov,
-            concentrator_index=self.concentrator_index,
-            water=self.water,
-            aperture_diameter=self.aperture_diameter,
-        )
-
-    def _channel(self, optics: Transceiver, sea: SeaState) -> ChannelModel:
-        return channel_model(
-            self.channel,
-            optics,
-            sea.two_scale,
-            lattice_nodes=self.lattice_nodes,
-            lattice_span=self.lattice_span,
-            montecarlo_rays=self.montecarlo_rays,
-            montecarlo_facets=self.montecarlo_facets,
-        )
+    def _channel(self) -> ChannelModel:
+        """Built once per config; an error names ``env.<setting>``."""
+        try:
+            return channel_model(
+                self.channel,
+                self.optics,
+                self.sea.two_scale,
+                lattice_nodes=self.lattice_nodes,
+                lattice_span=self.lattice_span,
+                montecarlo_rays=self.montecarlo_rays,
+                montecarlo_facets=self.montecarlo_facets,
+            )
+        except ValueError as error:
+            raise ValueError(f"env.{error}") from None
 
     @property
     def sensing(self) -> dict:
@@ -333,6 +300,37 @@ class EnvConfig:
     @property
     def episode_seconds(self) -> float:
         return self.dt * self.max_steps
+
+
+PHYSICS = ("sea", "geometry", "optics")
+"""The env's physics groups: each a physics object, built from a mapping of its keys."""
+
+
+def _physics(group: str, value, kind: type, build):
+    """``value`` as a ``kind``: the object, or built from a mapping of its keys; errors name ``env.<group>.<key>``."""
+    if isinstance(value, kind):
+        return value
+    if not isinstance(value, Mapping):
+        raise ValueError(f"env.{group} = {value!r} must be a mapping of its keys (docs/environment.md)")
+    try:
+        return build(**{key: _plain(item) for key, item in value.items()})
+    except TypeError:  # a key the object does not have
+        known = [field.name for field in dataclasses.fields(kind)]
+        unknown = sorted(set(value) - set(known))
+        if not unknown:
+            raise
+        raise ValueError(f"env.{group}.{unknown[0]} is not a known key; allowed: {', '.join(known)}") from None
+    except ValueError as error:
+        raise ValueError(f"env.{group}.{error}") from None
+
+
+def _build_sea(spectrum: str = "jonswap", **keys) -> SeaState:
+    try:
+        return sea_state(spectrum, **keys)
+    except ValueError as error:
+        if " is not a key of the " in str(error):
+            raise ValueError(f"{error} (env/spectrum chooses the sea)") from None
+        raise
 
 
 def _check_pair(

@@ -28,7 +28,7 @@ def sea_conditions(config: EnvConfig, links: torch.Tensor, generator: torch.Gene
 
 def geometry(config: EnvConfig, links: torch.Tensor, generator: torch.Generator):
     """Offset ratio ``[m]`` and offset azimuth (deg) ``[m]`` or None (the geometry's own), float64."""
-    offset = per_link(config.offset_range, config.offset_values, config.offset_ratio, links, generator)
+    offset = per_link(config.offset_range, config.offset_values, config.geometry.offset_ratio, links, generator)
     azimuth = per_link(config.offset_azimuth_range, config.offset_azimuth_values, None, links, generator)
     return offset, azimuth
 

@@ -84,7 +84,7 @@ class WaterAirEnv(EnvBase):
         super().__init__(device=resolve_device(config.device), batch_size=torch.Size([config.num_envs]))
         self.config = config
         self.reward_fn = reward or Reward()
-        self.sea, self.link, self.channel = config.sea(), config.link(), config.channel_model()
+        self.sea, self.link, self.channel = config.sea, config.geometry, config.channel_model()
         self.optics = self.channel.optics
         self.float_dtype = getattr(torch, config.dtype)
         self.observation_size = config.observation_size

@@ -131,7 +131,7 @@ class StepConstants:
             dt=config.dt,
             episode_seconds=config.episode_seconds,
             max_steps=config.max_steps,
-            vertical_distance=config.tx_depth + config.rx_height,
+            vertical_distance=config.geometry.tx_depth + config.geometry.rx_height,
             channel=channel,
         )
 

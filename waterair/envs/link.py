@@ -17,4 +17,4 @@ def link_budget(values: Mapping | None, env: EnvConfig) -> LinkBudget:
     ``values`` None (a run saved before the link group existed) gives the defaults: the APD by day.
     Errors are one line naming ``link.<key>``.
     """
-    return LinkBudget.from_mapping(dict(values or {}), optics=env.transceiver())
+    return LinkBudget.from_mapping(dict(values or {}), optics=env.optics)

@@ -43,7 +43,7 @@ def write_outputs(result: Evaluation, out: Path, cfg: DictConfig, physics: bool 
     written = [_write_json(result, out / "metrics.json", cfg), _write_csv(result, out / "metrics.csv")]
     figures = plots.evaluation_figures(result, out)
     if physics:
-        figures += physics_figures(out, result.env.sea())
+        figures += physics_figures(out, result.env.sea)
     written += figures
     written.append(_write_report(result, out / "report.md", figures))
     return written

@@ -300,7 +300,7 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
             wind_values=winds,
             offset_values=offsets,
             offset_azimuth_values=azimuths,
-            wind_direction_values=None,  # points fix the drone; the wind blows from env.wind_direction_deg
+            wind_direction_values=None,  # points fix the drone; the wind blows from env.sea.wind_direction_deg
             wind_range=None,
             offset_range=None,
             offset_azimuth_range=None,

@@ -189,7 +189,8 @@ def final_evaluation(cfg: DictConfig, actor) -> dict[str, float]:
     ``<policy>/<metric>`` with the policy ``agent``, ``straight_facing``, ``flat_snell``, the
     classical controller (``aoa_tracker`` or ``intensity_dither``) or ``upper_bound``.
     """
-    point = ((float(cfg.env.wind), float(cfg.env.offset_ratio), float(cfg.env.offset_azimuth_deg)),)
+    geometry = cfg.env.geometry
+    point = ((float(cfg.env.sea.wind), float(geometry.offset_ratio), float(geometry.offset_azimuth_deg)),)
     scenario = Scenario("train", "training point", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
     config = env_config(cfg)
     references = {**FINAL_POLICIES, (controller := controller_for(config.observation_extras)): controller}
@@ -219,6 +220,6 @@ def _hparams(cfg: DictConfig) -> dict:
         for key, value in OmegaConf.to_container(cfg[group], resolve=True).items():
             if isinstance(value, int | float | str | bool):
                 flat[f"{group}.{key}"] = value
-    flat["env.wind"] = cfg.env.wind
-    flat["env.offset_ratio"] = cfg.env.offset_ratio
+    flat["env.sea.wind"] = cfg.env.sea.wind
+    flat["env.geometry.offset_ratio"] = cfg.env.geometry.offset_ratio
     return flat

@@ -9,6 +9,7 @@ experiment. A run that already has its frames is left as it is.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +18,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from waterair.agents.checkpoint import load_state
+from waterair.envs.legacy import nest
 from waterair.training.checkpoint import CHECKPOINT
 from waterair.training.config import CONF_DIR, validate
 
@@ -45,7 +47,7 @@ def plan_resume(cfg: DictConfig, overrides: list[str]) -> ResumePlan:
         raise ValueError(f"resume = {cfg.resume!r} does not exist; give a run directory (outputs/train/DATE/TIME)")
     if not (run_dir / "config.yaml").is_file():
         raise ValueError(f"resume = {cfg.resume!r} is not a waterair run directory (it has no config.yaml)")
-    saved = OmegaConf.load(run_dir / "config.yaml")
+    saved = upgraded(OmegaConf.load(run_dir / "config.yaml"))
     checkpoint = run_dir / CHECKPOINT
     frames_done = int(load_state(checkpoint)["frames"]) if checkpoint.exists() else 0
     for override in OverridesParser.create().parse_overrides(overrides):
@@ -79,13 +81,22 @@ def plan_resume(cfg: DictConfig, overrides: list[str]) -> ResumePlan:
     return ResumePlan(run_dir=run_dir, config=config, frames_done=frames_done)
 
 
+def upgraded(saved: DictConfig) -> DictConfig:
+    """A run's config with the env's flat keys of the first releases folded into their groups (``env.sea.wind``)."""
+    if "env" in saved:
+        saved.env = OmegaConf.create(nest(OmegaConf.to_container(saved.env, resolve=False)))
+    return saved
+
+
 def _keys_set_by(override) -> list[str]:
-    """The config keys an override sets: itself, or every key its group option file sets."""
+    """The config keys an override sets: itself, or every key its group option file sets (at its ``@package``)."""
     if "/" not in override.key_or_group:
         return [override.key_or_group]
-    option = OmegaConf.load(CONF_DIR / override.key_or_group / f"{override.value()}.yaml")
-    package = override.key_or_group.split("/")[0]  # the env/* groups are overlays on env
-    return [f"{package}.{key}" for key in option]
+    path = CONF_DIR / override.key_or_group / f"{override.value()}.yaml"
+    header = re.match(r"# @package (\S+)", path.read_text())
+    package = header.group(1) if header else override.key_or_group.replace("/", ".")
+    prefix = "" if package == "_global_" else f"{package}."
+    return [f"{prefix}{key}" for key in OmegaConf.load(path) if key != "defaults"]
 
 
 def _plain(value):

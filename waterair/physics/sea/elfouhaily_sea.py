@@ -25,11 +25,13 @@ class ElfouhailySea(SeaState):
     """The measured-slope sea (``spectrum = "elfouhaily"``): its shared keys (:class:`SeaState`) and
 
     Attributes:
+        n_dir: direction bins, as every sea's, 16 by default here (docs/model.md §1.3).
         n_wavenumbers: log-spaced wavenumber bins from 0.4 k_p to the cutoff, in [1, 4096].
         wavenumber_cutoff: shortest resolved wavenumber k_c (rad/m), in (0, 1e4]; the band ends at
             max(wavenumber_cutoff, 12 k_p).
     """
 
+    n_dir: int = 16
     n_wavenumbers: int = 48
     wavenumber_cutoff: float = 10.0
 

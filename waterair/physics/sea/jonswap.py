@@ -2,7 +2,7 @@
 
 Paper Sec. III, eqs. (6)-(7). Angular frequencies ω are in rad/s, directions θ in radians relative
 to the wind, wind speed U10 in m/s, fetch in m. These formulas are kept exactly as the first release
-had them, so that ``env/spectrum=paper`` reproduces the paper bit for bit.
+had them, so that ``env/spectrum=jonswap`` reproduces the paper bit for bit.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The seas by the names a configuration gives them (``env.spectrum``; presets ``env/spectrum=paper|ocean``)."""
+"""The seas by the names a configuration gives them (``env.sea.spectrum``, chosen by ``env/spectrum=``)."""
 
 from __future__ import annotations
 
