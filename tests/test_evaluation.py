@@ -12,10 +12,12 @@ from omegaconf import OmegaConf
 
 from waterair.agents.checkpoint import CheckpointError, policy_state, save_policy
 from waterair.agents.networks import make_actor
+from waterair.evaluation.figures import physics_figures
 from waterair.evaluation.metrics import METRICS
 from waterair.evaluation.policies import SHIPPED, latest_run, load_policy, shipped_policy
 from waterair.evaluation.report import ROW_KEYS, write_outputs
 from waterair.evaluation.runner import compare_policies, evaluate, prepare
+from waterair.physics.sea import ElfouhailySea, JonswapSea
 from waterair.training import train
 from waterair.training.builders import env_config
 from waterair.training.export import CHECK, export_policy, short_check
@@ -327,3 +329,16 @@ def test_each_shipped_policy_loads_matches_its_metrics_and_has_the_documented_co
     config = env_config(policy.config, compile_kernel=False, device="cpu", action_mode="absolute")
     baseline = compare_policies(config, {"straight_facing": "straight_facing"}, CHECK)["straight_facing"]
     assert check["ratio_to_ub"] > baseline["ratio_to_ub"] + 0.02
+
+
+@pytest.mark.parametrize(
+    ("sea", "names"),
+    [
+        (JonswapSea(wind=8.0, n_freq=8, n_dir=4), ["jonswap_spectrum", "jonswap_directional", "wave_surface"]),
+        (ElfouhailySea(wind=8.0, n_wavenumbers=8, n_dir=4), ["elfouhaily_spectrum", "wave_surface"]),
+    ],
+)
+def test_the_physics_figures_draw_the_sea_evaluated_on_each_sea(sea, names, tmp_path):
+    written = physics_figures(tmp_path, sea)
+    assert [path.stem for path in written] == names
+    assert all(path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for path in written)

@@ -1,4 +1,5 @@
-"""Physics figures of the paper: the JONSWAP spectrum (Fig. 2) and a wave-surface snapshot (Fig. 3).
+"""Physics figures of the paper: the JONSWAP spectrum (Fig. 2) and a wave-surface snapshot (Fig. 3); on the
+measured-slope sea its own wavenumber spectrum, resolved band and cutoff, and its snapshot.
 
 python -m waterair.evaluation.figures --out outputs/figures [--wind 12 --fetch 2e4 --seed 0]
 """
@@ -15,7 +16,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import torch  # noqa: E402
 
-from waterair.physics.sea import JonswapSea, spreading  # noqa: E402
+from waterair.physics.sea import ElfouhailySea, JonswapSea, SeaState, spreading  # noqa: E402
 from waterair.physics.surface import WaveSurface  # noqa: E402
 
 POINTS_PER_CHUNK = 2048
@@ -57,8 +58,35 @@ def plot_directional_spectrum(sea: JonswapSea, path: Path) -> Path:
     return _save(fig, path)
 
 
+def plot_wavenumber_spectrum(sea: ElfouhailySea, path: Path) -> Path:
+    """The measured-slope sea's S(k) and its slope spectrum k² S(k), with the resolved band and the cutoff
+    beyond which the waves are unresolved slopes (docs/model.md §1.2-§1.3)."""
+    edges = sea.wavenumber_bins(torch.float64)
+    cutoff = float(sea.resolved_cutoff())
+    k = torch.logspace(math.log10(float(edges[0]) / 2), math.log10(max(cutoff * 100, 1e3)), 800, dtype=torch.float64)
+    spectrum = sea.wavenumber_spectrum(k)
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    top.loglog(k, spectrum, color="tab:blue", label="Elfouhaily S(k)")
+    bottom.loglog(k, k**2 * spectrum, color="tab:green", label="slope spectrum k² S(k)")
+    for ax in (top, bottom):
+        ax.axvspan(float(edges[0]), cutoff, color="tab:gray", alpha=0.12, label="resolved harmonics")
+        ax.axvline(cutoff, color="tab:red", linestyle="--", label=f"cutoff k_c = {cutoff:.3g} rad/m")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+        ax.set_ylim(bottom=float(ax.get_lines()[0].get_ydata().max()) * 1e-9)  # the peak's low side falls steeply
+    top.set_ylabel("S(k) (m³/rad)")
+    bottom.set_ylabel("k² S(k) (m/rad)")
+    bottom.set_xlabel("wavenumber k (rad/m)")
+    slopes = sea.mean_square_slope()
+    top.set_title(
+        f"Measured-slope sea, U10 = {sea.wind:g} m/s, fetch {sea.fetch:g} m, Hs {sea.significant_wave_height:.2f} m\n"
+        f"mean square slope {slopes.total:.4f}: {slopes.resolved:.4f} resolved, {slopes.unresolved:.4f} beyond k_c"
+    )
+    return _save(fig, path)
+
+
 def plot_surface_snapshot(
-    sea: JonswapSea, path: Path, *, extent: float = 60.0, resolution: int = 120, seed: int = 0
+    sea: SeaState, path: Path, *, extent: float = 60.0, resolution: int = 120, seed: int = 0
 ) -> Path:
     """One realisation η(x, y, 0) over an ``extent`` × ``extent`` m square (paper Fig. 3)."""
     surface = WaveSurface.sample(sea, 1, seed=seed)
@@ -77,21 +105,26 @@ def plot_surface_snapshot(
     ax.set_xlabel("x, downwind (m)")
     ax.set_ylabel("y (m)")
     ax.set_zlabel("η (m)")
-    ax.set_title(f"Wave surface at t = 0, U10 = {sea.wind:g} m/s ({sea.n_freq}×{sea.n_dir} harmonics)")
+    ax.set_title(f"Wave surface at t = 0, U10 = {sea.wind:g} m/s ({sea.n_bins}×{sea.n_dir} harmonics)")
     fig.colorbar(plot, ax=ax, shrink=0.6, pad=0.12, label="η (m)")
     return _save(fig, path)
 
 
-def physics_figures(out: Path, sea: JonswapSea | None = None, seed: int = 0) -> list[Path]:
-    """Write every physics figure into ``out`` and return their paths."""
+def physics_figures(out: Path, sea: SeaState | None = None, seed: int = 0) -> list[Path]:
+    """Write the physics figures of ``sea`` (default: the paper's) into ``out`` and return their paths."""
     sea = sea or JonswapSea()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    return [
-        plot_spectrum(sea, out / "jonswap_spectrum.png"),
-        plot_directional_spectrum(sea, out / "jonswap_directional.png"),
-        plot_surface_snapshot(sea, out / "wave_surface.png", seed=seed),
-    ]
+    if isinstance(sea, JonswapSea):
+        spectra = [
+            plot_spectrum(sea, out / "jonswap_spectrum.png"),
+            plot_directional_spectrum(sea, out / "jonswap_directional.png"),
+        ]
+    elif isinstance(sea, ElfouhailySea):
+        spectra = [plot_wavenumber_spectrum(sea, out / "elfouhaily_spectrum.png")]
+    else:
+        raise TypeError(f"no spectrum figure for {type(sea).__name__}")
+    return [*spectra, plot_surface_snapshot(sea, out / "wave_surface.png", seed=seed)]
 
 
 def _save(fig, path: Path) -> Path:
