@@ -9,6 +9,7 @@ from waterair.physics.channel import (
     CHANNELS,
     ChannelModel,
     LinkEnds,
+    LocalEstimate,
     MonteCarlo,
     RayTube,
     SinglePath,
@@ -32,7 +33,9 @@ OPTICS = Transceiver()
         ("full", False, RayTube),
         ("full", True, TwoScale),
         ("montecarlo", False, MonteCarlo),
-        ("montecarlo", True, MonteCarlo),
+        ("montecarlo", True, LocalEstimate),
+        ("counting", False, MonteCarlo),
+        ("counting", True, MonteCarlo),
     ],
 )
 def test_the_registry_maps_each_name_to_its_model(name, two_scale, kind):
@@ -41,7 +44,7 @@ def test_the_registry_maps_each_name_to_its_model(name, two_scale, kind):
     assert isinstance(model, ChannelModel) and name in CHANNELS
     if kind is TwoScale:
         assert model.nodes == 9
-    if kind is MonteCarlo:
+    if kind in (MonteCarlo, LocalEstimate):
         assert model.rays == 300 and not model.compiles and not model.needs_exact_point
 
 
@@ -53,6 +56,7 @@ def test_the_registry_maps_each_name_to_its_model(name, two_scale, kind):
         ({"lattice_span": 0.5}, r"^lattice_span = 0.5 is out of range"),
         ({"montecarlo_rays": 0}, r"^montecarlo_rays = 0 is out of range"),
         ({"montecarlo_facets": 0}, r"^montecarlo_facets = 0 is out of range"),
+        ({"montecarlo_points": 0}, r"^montecarlo_points = 0 is out of range"),
     ],
 )
 def test_every_setting_is_checked_whichever_model_is_chosen_and_named_by_its_key(settings, message):
@@ -62,7 +66,7 @@ def test_every_setting_is_checked_whichever_model_is_chosen_and_named_by_its_key
 
 def test_an_unknown_channel_is_a_one_line_error():
     with pytest.raises(
-        ValueError, match=r"^channel = 'exact' is not allowed; choose one of single_path, full, montecarlo$"
+        ValueError, match=r"^channel = 'exact' is not allowed; choose one of single_path, full, montecarlo, counting$"
     ):
         channel_model("exact", OPTICS, False)
 

@@ -52,12 +52,15 @@ STEPS = 6
 
 
 def rollout(channel: str, sea: str, interface: str) -> dict[str, torch.Tensor]:
-    """The reset and ``STEPS`` steps of 4 links under seeded random actions (each key ``[STEPS + 1, 4, ...]``)."""
+    """The reset and ``STEPS`` steps of 4 links under seeded random actions (each key ``[STEPS + 1, 4, ...]``).
+
+    ``montecarlo`` was recorded when it named the hit-counting tracer on both seas: that model is now
+    ``counting`` (``montecarlo`` on the measured-slope sea is the local estimate, tested on its own)."""
     env = WaterAirEnv(
         num_envs=4,
         seed=7,
         dtype="float64",
-        channel=channel,
+        channel="counting" if channel == "montecarlo" else channel,
         montecarlo_rays=2000,
         montecarlo_facets=8,
         **SEAS[sea],

@@ -13,7 +13,7 @@ SMALL = {"n_freq": 12, "n_dir": 6, "n_wavenumbers": 12, "montecarlo_rays": 200, 
 OCEAN = {"spectrum": "elfouhaily", "n_dir": 8}
 
 
-@pytest.mark.parametrize("channel", ["full", "montecarlo"])
+@pytest.mark.parametrize("channel", ["full", "montecarlo", "counting"])
 @pytest.mark.parametrize("spectrum", ["jonswap", "elfouhaily"])
 def test_check_env_specs_for_each_channel(channel, spectrum):
     env = WaterAirEnv(num_envs=3, seed=0, channel=channel, spectrum=spectrum, observation_extras=("spot",), **SMALL)
@@ -22,7 +22,7 @@ def test_check_env_specs_for_each_channel(channel, spectrum):
 
 @settings(max_examples=8, deadline=None)
 @given(
-    channel=st.sampled_from(["single_path", "full", "montecarlo"]),
+    channel=st.sampled_from(["single_path", "full", "montecarlo", "counting"]),
     spectrum=st.sampled_from(["jonswap", "elfouhaily"]),
     wind=st.floats(0.5, 40.0),
     offset=st.floats(0.0, 2.0),

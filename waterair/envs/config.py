@@ -26,6 +26,7 @@ from waterair.physics.channel import (
     LATTICE_SPAN,
     ChannelModel,
     LinkGeometry,
+    LocalEstimate,
     MonteCarlo,
     Transceiver,
     channel_model,
@@ -74,11 +75,12 @@ class EnvConfig:
     geometry: LinkGeometry = LinkGeometry()  # env.geometry.*: where the ends are (docs/model.md §0)
     optics: Transceiver = Transceiver()  # env.optics.*: the ends' optics (docs/model.md §4-§5)
     # channel (docs/model.md §4)
-    channel: str = "single_path"  # single_path | full | montecarlo (evaluation only: slow)
+    channel: str = "single_path"  # single_path | full | montecarlo | counting (the last two for evaluation: slow)
     lattice_nodes: int = LATTICE_NODES  # full channel on a two-scale sea: nodes per axis of the surface lattice
     lattice_span: float = LATTICE_SPAN  # full channel: the lattice's half-width, in standard deviations of its Gaussian
-    montecarlo_rays: int = MonteCarlo.rays  # montecarlo channel: surface rays per link and step
-    montecarlo_facets: int = MonteCarlo.facets  # montecarlo channel: unresolved-slope draws per surface ray
+    montecarlo_rays: int = MonteCarlo.rays  # montecarlo and counting channels: surface rays per link and step
+    montecarlo_facets: int = MonteCarlo.facets  # counting tracer: unresolved-slope draws per surface ray
+    montecarlo_points: int = LocalEstimate.points  # local estimate: aperture points each surface hit lights
     # dynamics and interface (docs/environment.md)
     dt: float = 0.05  # s
     max_steps: int = 500  # steps per episode (truncation)
@@ -250,6 +252,7 @@ class EnvConfig:
                 lattice_span=self.lattice_span,
                 montecarlo_rays=self.montecarlo_rays,
                 montecarlo_facets=self.montecarlo_facets,
+                montecarlo_points=self.montecarlo_points,
             )
         except ValueError as error:
             raise ValueError(f"env.{error}") from None

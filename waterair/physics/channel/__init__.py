@@ -9,7 +9,10 @@ Every model is a :class:`~.model.ChannelModel` (the interface, §4.7), chosen by
   lensing (the ray-tube factor), bounded by the aperture at caustics; the calm-sea reference G_0.
 * :class:`TwoScale` (:mod:`.lattice`): every point of the resolved surface blurred by the
   unresolved slopes and the aperture (``env.channel=full`` on the measured-slope sea).
-* :class:`MonteCarlo` (:mod:`.montecarlo`): an independent ray tracer, the reference.
+* :class:`LocalEstimate` (:mod:`.local_estimate`): the Monte Carlo reference as a local estimate (every
+  surface hit sends its light to points of the aperture through the facet density), on a two-scale sea.
+* :class:`MonteCarlo` (:mod:`.montecarlo`): the hit-counting ray tracer, the local estimate's check where
+  counting is precise, and the reference on a sea without unresolved slopes.
 
 Around them: :mod:`.light` (the light at the receiver as weighted rays, and what a pointing makes of
 it: gain, upper bound, centroid, for every model), :mod:`.facets` (the facet a ray needs and the
@@ -28,6 +31,7 @@ from waterair.physics.channel.light import (
     received_gain,
     upper_bound,
 )
+from waterair.physics.channel.local_estimate import LocalEstimate, arrival_jacobian, facet_density, local_estimate
 from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.channel.montecarlo import MonteCarlo, MonteCarloLight, standard_error, trace
 from waterair.physics.channel.ray_tube import (
@@ -50,6 +54,7 @@ __all__ = [
     "LightSamples",
     "LinkEnds",
     "LinkGeometry",
+    "LocalEstimate",
     "MonteCarlo",
     "MonteCarloLight",
     "RayTube",
@@ -74,6 +79,9 @@ __all__ = [
     "receive",
     "received_gain",
     "standard_error",
+    "arrival_jacobian",
+    "facet_density",
+    "local_estimate",
     "trace",
     "two_scale_light",
     "upper_bound",

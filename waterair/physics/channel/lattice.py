@@ -63,10 +63,17 @@ class TwoScale(ChannelModel):
     prepared_keys = ("lattice_basis", "blur")
 
     def __post_init__(self) -> None:
-        check_int("nodes", self.nodes, 3, 31)
-        if self.nodes % 2 == 0:
-            raise ValueError(f"nodes = {self.nodes} is not allowed; it must be odd (a node on the centre)")
-        check_range("span", self.span, 1.0, 8.0)
+        self.check_settings(nodes=self.nodes, span=self.span)
+
+    @staticmethod
+    def check_settings(**settings) -> None:
+        """Validate the settings given (``nodes``, ``span``), e.g. for a configuration that names another model."""
+        if "nodes" in settings:
+            nodes = check_int("nodes", settings["nodes"], 3, 31)
+            if nodes % 2 == 0:
+                raise ValueError(f"nodes = {nodes} is not allowed; it must be odd (a node on the centre)")
+        if "span" in settings:
+            check_range("span", settings["span"], 1.0, 8.0)
 
     def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
         return calm_sea_reference(tx, rx, self.optics)

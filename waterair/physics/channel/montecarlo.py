@@ -28,13 +28,10 @@ from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples, pointed_gains
 from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.channel.ray_tube import calm_sea_reference
+from waterair.physics.channel.rays import departures, surface_hits
 from waterair.physics.optics import beam_divergence, refract, transverse_frame, unit_vector, water_transmittance
 from waterair.physics.paths import PathSolution
-from waterair.physics.surface import Harmonics, harmonic_sums
-
-INTERSECTION_ITERATIONS = 8
-"""Newton steps of each ray's surface intersection (from the z = 0 crossing): the residual falls
-below 1e-9 m in float64 at 20 m/s (the ray meets each near-vertical surface once)."""
+from waterair.physics.surface import Harmonics
 
 
 class MonteCarloLight(TensorClass):
@@ -66,9 +63,17 @@ class MonteCarlo(ChannelModel):
     prepared_keys = ("unresolved",)
 
     def __post_init__(self) -> None:
-        check_int("rays", self.rays, 1, 10**9)
-        check_int("facets", self.facets, 1, 10**5)
-        check_range("proposal_beams", self.proposal_beams, 0.0, 100.0, low_open=True)
+        self.check_settings(rays=self.rays, facets=self.facets, proposal_beams=self.proposal_beams)
+
+    @staticmethod
+    def check_settings(**settings) -> None:
+        """Validate the settings given (``rays``, ``facets``, ``proposal_beams``)."""
+        if "rays" in settings:
+            check_int("rays", settings["rays"], 1, 10**9)
+        if "facets" in settings:
+            check_int("facets", settings["facets"], 1, 10**5)
+        if "proposal_beams" in settings:
+            check_range("proposal_beams", settings["proposal_beams"], 0.0, 100.0, low_open=True)
 
     def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
         return calm_sea_reference(tx, rx, self.optics)
@@ -206,28 +211,10 @@ def standard_error(result: MonteCarloLight, tx_dir: torch.Tensor, rx_dir: torch.
 def _trace_chunk(sea, tx, rx, t, optics, axis, e1, e2, reference, tangent, width, facet_slopes, start, area):
     """One chunk of rays: (weight, departure, arrival, ray index), each ``[B, count · facets, ·]``."""
     batch, count, facets = facet_slopes.shape[:3]
-    angle = torch.linalg.vector_norm(tangent, dim=-1).clamp(min=1e-300)
-    along = tangent / angle.unsqueeze(-1)
-    direction = torch.cos(angle).unsqueeze(-1) * axis.unsqueeze(1) + torch.sin(angle).unsqueeze(-1) * (
-        along[..., :1] * e1.unsqueeze(1) + along[..., 1:] * e2.unsqueeze(1)
-    )
-    # q: a Gaussian in the tangent plane (exponential map), per unit solid angle
-    proposal = torch.exp(-0.5 * (tangent**2).sum(-1) / width**2) / (2.0 * math.pi * width**2) * angle / torch.sin(angle)
-    distance = -tx[:, 2:3] / direction[..., 2]  # to z = 0
-    time = torch.as_tensor(t, dtype=tx.dtype, device=tx.device).expand(batch)
-    for _ in range(INTERSECTION_ITERATIONS):
-        x = tx[:, 0:1] + distance * direction[..., 0]
-        y = tx[:, 1:2] + distance * direction[..., 1]
-        height, slope_x, slope_y = harmonic_sums(*sea, x, y, time, 1)
-        residual = tx[:, 2:3] + distance * direction[..., 2] - height
-        rate = direction[..., 2] - slope_x * direction[..., 0] - slope_y * direction[..., 1]
-        distance = distance - residual / rate
-    x = tx[:, 0:1] + distance * direction[..., 0]
-    y = tx[:, 1:2] + distance * direction[..., 1]
-    height, slope_x, slope_y = harmonic_sums(*sea, x, y, time, 1)
-    point = torch.stack((x, y, height), dim=-1)
+    direction, proposal = departures(axis, e1, e2, tangent, width)
+    point, resolved, distance = surface_hits(sea, tx, direction, t)
     # facets: the resolved slope plus each draw of the unresolved one
-    slope = torch.stack((slope_x, slope_y), dim=-1).unsqueeze(2) + facet_slopes
+    slope = resolved.unsqueeze(2) + facet_slopes
     normal = torch.cat((-slope, torch.ones_like(slope[..., :1])), dim=-1)
     normal = normal / torch.linalg.vector_norm(normal, dim=-1, keepdim=True)
     incoming = direction.unsqueeze(2).expand_as(normal)
