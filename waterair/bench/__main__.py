@@ -76,7 +76,10 @@ def main(argv: list[str] | None = None) -> int:
     montecarlo.add_argument("--seas", type=int, default=16, help="sea realisations (links) per wind")
     montecarlo.add_argument("--steps", type=int, default=20, help="steps of 0.05 s per sea")
     montecarlo.add_argument("--rays", type=int, default=2000, help="surface rays per link and step")
-    montecarlo.add_argument("--facets", type=int, default=64, help="unresolved-slope draws per surface ray")
+    montecarlo.add_argument("--facets", type=int, default=64, help="counting: unresolved-slope draws per surface ray")
+    montecarlo.add_argument(
+        "--reference", choices=("local", "counting"), default="local", help="the local estimate or the counting tracer"
+    )
     montecarlo.add_argument("--offset", type=float, default=0.1, help="offset ratio")
     evaluation = sub.add_parser("evaluate", help="the default evaluate.py work, batched vs one policy at a time")
     training = sub.add_parser(
@@ -156,7 +159,9 @@ def main(argv: list[str] | None = None) -> int:
         record = {"machine": machine(device, getattr(torch, args.dtype))}
         dtype = getattr(torch, args.dtype)
         record.update(
-            bench_montecarlo(args.winds, args.seas, args.steps, args.rays, args.facets, args.offset, device, dtype)
+            bench_montecarlo(
+                args.winds, args.seas, args.steps, args.rays, args.facets, args.offset, device, dtype, args.reference
+            )
         )
         print("\n" + montecarlo_table(record))
     elif args.suite == "env":

@@ -31,7 +31,7 @@ from waterair.physics.channel.light import (
     received_gain,
     upper_bound,
 )
-from waterair.physics.channel.local_estimate import LocalEstimate, arrival_jacobian, facet_density, local_estimate
+from waterair.physics.channel.local_estimate import LocalEstimate, arrival_jacobian, facet_density
 from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.channel.montecarlo import MonteCarlo, MonteCarloLight, standard_error, trace
 from waterair.physics.channel.ray_tube import (
@@ -81,7 +81,6 @@ __all__ = [
     "standard_error",
     "arrival_jacobian",
     "facet_density",
-    "local_estimate",
     "trace",
     "two_scale_light",
     "upper_bound",
