@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 from waterair.core.validation import check_choice
 from waterair.physics.channel.geometry import Transceiver
@@ -49,13 +50,14 @@ def channel_model(
     chosen model, or by its own model's check); an error names the setting by its keyword here
     (``lattice_nodes = 4 is not allowed; …``)."""
     check_choice("channel", name, CHANNELS)
-    given = {
+    given: dict[str, Any] = {
         "lattice_nodes": lattice_nodes,
         "lattice_span": lattice_span,
         "montecarlo_rays": montecarlo_rays,
         "montecarlo_facets": montecarlo_facets,
         "montecarlo_points": montecarlo_points,
     }
+    kind: type[ChannelModel]
     if name == "single_path":
         kind = SinglePath
     elif name == "counting" or (name == "montecarlo" and not two_scale_sea):
