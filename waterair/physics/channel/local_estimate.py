@@ -32,7 +32,7 @@ from waterair.physics.channel.light import LightSamples
 from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.channel.montecarlo import MonteCarloLight
 from waterair.physics.channel.ray_tube import calm_sea_reference
-from waterair.physics.channel.rays import departures, surface_hits
+from waterair.physics.channel.rays import FEWEST_ITERATIONS, departures, surface_hits
 from waterair.physics.optics import beam_divergence, transverse_frame, unit_vector, water_transmittance
 from waterair.physics.paths import PathSolution
 from waterair.physics.surface import Harmonics
@@ -225,7 +225,7 @@ def _estimate_chunk(sea, tx, t, optics, axis, e1, e2, tangent, width, target, un
     """One chunk of rays: (weight, departure, arrival, ray index), each ``[B, count · points, ·]``."""
     batch, count, points = target.shape[:3]
     direction, proposal = departures(axis, e1, e2, tangent, width)
-    point, resolved, distance = surface_hits(sea, tx, direction, t)
+    point, resolved, distance = surface_hits(sea, tx, direction, t, FEWEST_ITERATIONS)
     toward = target - point.unsqueeze(2)
     reach = torch.linalg.vector_norm(toward, dim=-1)
     outgoing = toward / reach.unsqueeze(-1)

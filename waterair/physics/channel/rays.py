@@ -10,8 +10,12 @@ import torch
 from waterair.physics.surface import Harmonics, harmonic_sums
 
 INTERSECTION_ITERATIONS = 8
-"""Newton steps of each ray's surface intersection (from the z = 0 crossing): the residual falls
-below 1e-9 m in float64 at 20 m/s (the ray meets each near-vertical surface once)."""
+"""Newton steps of each ray's surface intersection (from the z = 0 crossing) in the counting tracer: the
+residual falls below 1e-9 m in float64 at 20 m/s (the ray meets each near-vertical surface once)."""
+FEWEST_ITERATIONS = 4
+"""Newton steps that already reach float64's floor on the ocean sea: the largest residual after 4 steps is
+2e-14 m at 20 m/s (3, 3, 2 · 10⁻¹⁵ at 4, 12 m/s; 64,000 rays ±0.1 rad around the calm-sea departure at a
+50 % offset, 2026-11-25), after 3 steps 2e-7 m. The local estimate takes these."""
 
 
 def departures(
@@ -31,15 +35,19 @@ def departures(
 
 
 def surface_hits(
-    sea: Harmonics, tx: torch.Tensor, direction: torch.Tensor, t: float | torch.Tensor
+    sea: Harmonics,
+    tx: torch.Tensor,
+    direction: torch.Tensor,
+    t: float | torch.Tensor,
+    iterations: int = INTERSECTION_ITERATIONS,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Where rays from ``tx`` ``[B, 3]`` along ``direction`` ``[B, n, 3]`` (up) meet the resolved surface at time
     ``t``: the point ``[B, n, 3]`` (m), the surface slope there ``[B, n, 2]`` and the distance from T ``[B, n]`` (m),
-    by Newton on z(s) − η(x(s), y(s), t) from the z = 0 crossing."""
+    by ``iterations`` Newton steps on z(s) − η(x(s), y(s), t) from the z = 0 crossing."""
     batch = tx.shape[0]
     distance = -tx[:, 2:3] / direction[..., 2]  # to z = 0
     time = torch.as_tensor(t, dtype=tx.dtype, device=tx.device).expand(batch)
-    for _ in range(INTERSECTION_ITERATIONS):
+    for _ in range(iterations):
         x = tx[:, 0:1] + distance * direction[..., 0]
         y = tx[:, 1:2] + distance * direction[..., 1]
         height, slope_x, slope_y = harmonic_sums(*sea, x, y, time, 1)
