@@ -8,7 +8,13 @@ import torch
 from conftest import F64, calm, ends
 
 from waterair.physics.channel import LinkEnds, MonteCarlo, Transceiver, flat_sea_irradiance, standard_error
-from waterair.physics.channel.local_estimate import LocalEstimate, arrival_jacobian, facet_density, local_estimate
+from waterair.physics.channel.local_estimate import (
+    LocalEstimate,
+    arrival_jacobian,
+    facet_density,
+    facet_share,
+    local_estimate,
+)
 from waterair.physics.channel.rays import FEWEST_ITERATIONS, departures, surface_hits
 from waterair.physics.optics import N_AIR, N_WATER, refract, transverse_frame, unit_vector
 from waterair.physics.paths import flat_sea_point
@@ -39,11 +45,20 @@ def test_the_facet_density_integrated_over_every_arrival_direction_is_one():
     direction = torch.cos(angle)[..., None] * centre + torch.sin(angle)[..., None] * (
         (a / angle)[..., None] * e1[0] + (b / angle)[..., None] * e2[0]
     )
-    density, _ = facet_density(INCOMING, direction, MEAN_SLOPE, COVARIANCE, N_WATER, N_AIR)
+    density, normal = facet_density(INCOMING, direction, MEAN_SLOPE, COVARIANCE, N_WATER, N_AIR)
     solid_angle = torch.sin(angle) / angle  # dΩ = sin|t|/|t| dt²
     step = float(axis[1] - axis[0])
     total = torch.trapezoid(torch.trapezoid(density * solid_angle, dx=step), dx=step)
     assert abs(float(total) - 1.0) < 1e-3
+    # weighted by each facet's share of the ray (its interception against the mean surface's): still 1, as
+    # the share is linear in the slope and the slopes are centred on ζ̄; and not 1 without that centring
+    share = facet_share(INCOMING, normal, MEAN_SLOPE)
+    intercepted = torch.trapezoid(torch.trapezoid(density * share * solid_angle, dx=step), dx=step)
+    assert abs(float(intercepted) - 1.0) < 1e-3
+    assert share.min() < 0.95 and share.max() > 1.05  # the facets the ray meets differ from the slopes' statistics
+    off_centre = facet_share(INCOMING, normal, torch.zeros(2, dtype=F64))
+    wrong = torch.trapezoid(torch.trapezoid(density * off_centre * solid_angle, dx=step), dx=step)
+    assert abs(float(wrong) - 1.0) > 2e-3
 
 
 @pytest.mark.parametrize("slope", [(0.0, 0.0), (0.12, -0.07), (-0.3, 0.25)])

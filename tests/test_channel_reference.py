@@ -6,10 +6,14 @@ channel models became objects in :mod:`waterair.physics.channel` (float64, eager
 asks for equality, bit for bit, of every output the step reports: gains, bounds, intensities,
 observations (the quadrant spot included), rewards and the residual base controller's tilts.
 
+Recorded again after one physics change: the facet interception (docs/model.md §4.3) moved the full
+channel and the counting tracer on the measured-slope sea (gains +0.25 to +0.9 % on average over these
+rollouts, the bounds +0.3 to +0.7 %, G_0 not at all); every other case is still the first recording, bit for bit.
+
 The vectorised math of PyTorch's CPU kernels (exp, log, sqrt and sums over SIMD lanes) rounds
 differently on different instruction sets: the Monte Carlo tracer on the measured-slope sea moves by
 an ulp or two between AVX2 and AVX512. The file holds one recording per instruction set
-(``torch.backends.cpu.get_cpu_capability()``), each made on the tree before the change; a machine
+(``torch.backends.cpu.get_cpu_capability()``; AVX2 on an AVX512 machine with ``ATEN_CPU_CAPABILITY=avx2``); a machine
 whose instruction set has none compares with the others to 1e-12 relative and says so.
 """
 

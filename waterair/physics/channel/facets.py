@@ -26,3 +26,11 @@ def aperture_slope_variance(w: torch.Tensor, u2: torch.Tensor, r2: torch.Tensor,
     facet slope over the aperture (docs/model.md §4.3), for the facet normal ``w`` ``[..., 3]``, the
     arriving direction ``u2`` ``[..., 3]`` and the distance to the receiver ``r2`` (m)."""
     return (optics.aperture_diameter / 4.0 * optics.n_air / r2) ** 2 * (w * u2).sum(-1).abs() / w[..., 2].abs() ** 3
+
+
+def interception(u1: torch.Tensor, slope: torch.Tensor) -> torch.Tensor:
+    """u1·(−ζ_x, −ζ_y, 1) ``[...]``: how much of a ray along ``u1`` ``[..., 3]`` (up) a facet of slope ``ζ``
+    ``[..., 2]`` intercepts per unit horizontal area (docs/model.md §4.3). Slope statistics (Cox and Munk)
+    are per unit horizontal area; a ray meets the facets of slope ζ in proportion to this, so over facets
+    N(ζ̄, Σ) the weight u1·(−ζ, 1) / u1·(−ζ̄, 1) averages to 1. Negative: the facet faces away from the ray."""
+    return u1[..., 2] - (slope * u1[..., :2]).sum(-1)

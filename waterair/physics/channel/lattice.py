@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import torch
 
 from waterair.core.validation import check_int, check_range
-from waterair.physics.channel.facets import aperture_slope_variance, facet_normal
+from waterair.physics.channel.facets import aperture_slope_variance, facet_normal, interception
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
 from waterair.physics.channel.model import ChannelModel, LinkEnds
@@ -176,11 +176,13 @@ def two_scale_light(
     facet = w / torch.linalg.vector_norm(w, dim=-1, keepdim=True)
     theta1 = torch.acos((u1 * facet).sum(-1).clamp(-1.0, 1.0))
     transmitted = water_transmittance(theta1, r1, optics.n_water, optics.n_air, optics.attenuation_per_m)
-    normal_u1 = (u1[..., 2] - slope_x * u1[..., 0] - slope_y * u1[..., 1]).abs()  # |N·u1|, N = (−η_x, −η_y, 1)
+    # the facet's interception per unit horizontal area, |u1·(−ζ, 1)| = |u1·w| / w_z for the needed slope ζ
+    # (docs/model.md §4.3): a facet tilted toward the ray catches more of it than the mean surface would
+    intercepted = interception(u1, needed + torch.stack((slope_x, slope_y), dim=-1)).abs()
     to_receiver = optics.n_air**2 / r2**2 * (w * u2).sum(-1).abs() / w_z**3
     area = (2.0 * span / (nodes - 1)) ** 2 * torch.linalg.det(basis).abs().unsqueeze(-1)
     upward = (w[..., 2] > 1e-6) & (u2[..., 2] > 0)
-    weight = area * transmitted * normal_u1 / r1**2 * density * to_receiver
+    weight = area * transmitted * intercepted / r1**2 * density * to_receiver
     weight = torch.where(upward & torch.isfinite(weight), weight, torch.zeros_like(weight))
     return LightSamples(weight=weight, departure=u1, arrival=u2, batch_size=[batch, nodes * nodes])
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import torch
 
 from waterair.core.validation import check_int, check_range
+from waterair.physics.channel.facets import interception
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
 from waterair.physics.channel.model import ChannelModel, LinkEnds
@@ -85,6 +86,13 @@ def facet_density(
     quadratic = (yy * dx**2 - 2.0 * xy * dx * dy + xx * dy**2) / determinant
     gaussian = torch.exp(-0.5 * quadratic) / (2.0 * math.pi * torch.sqrt(determinant))
     return torch.where(valid, gaussian * jacobian, torch.zeros_like(jacobian)), normal
+
+
+def facet_share(incoming: torch.Tensor, normal: torch.Tensor, mean_slope: torch.Tensor) -> torch.Tensor:
+    """u₁·(−ζ, 1) / u₁·(−ζ̄, 1) ``[...]``: the facet of unit ``normal`` h intercepts this share of the ray
+    ``incoming`` u₁ against the mean surface of slope ``mean_slope`` ζ̄ (:func:`.facets.interception`)."""
+    slope = -normal[..., :2] / normal[..., 2:].clamp(min=1e-30)
+    return interception(incoming, slope) / interception(incoming, mean_slope.expand_as(slope))
 
 
 @dataclass(frozen=True)
@@ -242,8 +250,11 @@ def _estimate_chunk(sea, tx, t, optics, axis, e1, e2, tangent, width, target, un
     transmitted = water_transmittance(
         theta1, distance.unsqueeze(-1), optics.n_water, optics.n_air, optics.attenuation_per_m
     )
+    # the ray meets facets in proportion to their interception, u₁·(−ζ, 1) = u₁·h / h_z, against the mean
+    # surface's u₁·(−ζ̄, 1) (docs/model.md §4.3): p(ζ) per unit horizontal area becomes per intercepted ray
+    share = facet_share(incoming, normal, resolved.unsqueeze(2))
     # irradiance across the ray at R′ per unit on-axis intensity: (power per sr toward u₂) / r₂², over q
-    weight = transmitted * density / reach**2 / proposal.unsqueeze(-1)
+    weight = transmitted * density * share / reach**2 / proposal.unsqueeze(-1)
     good = (outgoing[..., 2] > 0) & torch.isfinite(weight)
     weight = torch.where(good, weight, torch.zeros_like(weight))
     ray = (start + torch.arange(count, device=tx.device)).view(1, count, 1).expand(batch, count, points)

@@ -24,6 +24,7 @@ import torch
 from tensordict import TensorClass
 
 from waterair.core.validation import check_int, check_range
+from waterair.physics.channel.facets import interception
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples, pointed_gains
 from waterair.physics.channel.model import ChannelModel, LinkEnds
@@ -230,9 +231,13 @@ def _trace_chunk(sea, tx, rx, t, optics, axis, e1, e2, reference, tangent, width
     transmitted_power = water_transmittance(
         theta1, distance.unsqueeze(-1), optics.n_water, optics.n_air, optics.attenuation_per_m
     )
+    # the ray meets facets in proportion to their interception u₁·(−ζ, 1) against the mean surface's
+    # u₁·(−ζ̄, 1) (docs/model.md §4.3): the draws, per unit horizontal area, weighted per intercepted ray
+    facing = interception(incoming, slope)
+    share = facing / interception(incoming, resolved.unsqueeze(2).expand_as(slope))
     # plane irradiance → irradiance across the ray (÷ cos), per unit on-axis intensity (÷ q)
-    weight = transmitted_power / proposal.unsqueeze(-1) / area / slant.clamp(min=1e-12)
-    weight = torch.where(good & torch.isfinite(weight), weight, torch.zeros_like(weight))
+    weight = transmitted_power * share / proposal.unsqueeze(-1) / area / slant.clamp(min=1e-12)
+    weight = torch.where(good & (facing > 0) & torch.isfinite(weight), weight, torch.zeros_like(weight))
     ray = (start + torch.arange(count, device=tx.device)).view(1, count, 1).expand(batch, count, facets)
     departure = direction.unsqueeze(2).expand(batch, count, facets, 3)
     return (
