@@ -137,7 +137,7 @@ def test_the_counting_tracer_agrees_on_a_large_aperture():
     local = LocalEstimate(optics, rays=40_000, points=1)
     generator = torch.Generator().manual_seed(2)
     counted, counted_error = standard_error(
-        counting.trace(surface.harmonics, surface.unresolved, link, 0.0, generator), *pointing, optics
+        counting.estimate(surface.harmonics, surface.unresolved, link, 0.0, generator), *pointing, optics
     )
     estimated, estimated_error = standard_error(
         local.estimate(surface.harmonics, surface.unresolved, link, 0.0, generator), *pointing, optics

@@ -31,7 +31,7 @@ def test_monte_carlo_on_a_calm_sea_counts_the_closed_form():
     # the proposal: 1 mrad wide around the calm-sea departure
     tracer = MonteCarlo(OPTICS, rays=20_000, facets=1, proposal_beams=0.001 / BEAM)
     generator = torch.Generator().manual_seed(0)
-    result = tracer.trace(surface.harmonics, surface.unresolved, LinkEnds(tx, rx, point), 0.0, generator)
+    result = tracer.estimate(surface.harmonics, surface.unresolved, LinkEnds(tx, rx, point), 0.0, generator)
     wide = Transceiver(divergence=1.5, half_fov=1.5)  # G_D within 0.2 % of 1 over the rays, G_A constant
     gain, error = standard_error(result, axis, -arrival, wide)
     closed = flat_sea_irradiance(tx, rx, OPTICS) * received_gain(

@@ -142,7 +142,7 @@ def test_ray_tube_agrees_with_the_monte_carlo_reference_link_by_link():
     beam = beam_divergence(OPTICS.divergence, OPTICS.wavelength)
     tracer = MonteCarlo(OPTICS, rays=20_000, facets=1, proposal_beams=0.0015 / beam)
     point_ends = LinkEnds(tx, rx, path.point)
-    result = tracer.trace(surface.harmonics, surface.unresolved, point_ends, 2.0, torch.Generator().manual_seed(1))
+    result = tracer.estimate(surface.harmonics, surface.unresolved, point_ends, 2.0, torch.Generator().manual_seed(1))
     wide = Transceiver(divergence=1.5, half_fov=1.5)
     reference, error = standard_error(result, path.departure, -path.arrival, wide)
     reference = reference / (wide.concentrator_index**2 / math.sin(wide.half_fov) ** 2)

@@ -82,8 +82,7 @@ def bench_montecarlo(
             time_now = torch.full((seas,), t, dtype=dtype, device=device)
             light = fast_model.light(surface.harmonics, path, ends, time_now, prepared)
             clock = time.perf_counter()
-            trace = tracer.estimate if reference_model == "local" else tracer.trace
-            result = trace(surface.harmonics, surface.unresolved, ends, t, generator)
+            result = tracer.estimate(surface.harmonics, surface.unresolved, ends, t, generator)
             if device.type == "cuda":
                 torch.cuda.synchronize()
             traced_s += time.perf_counter() - clock

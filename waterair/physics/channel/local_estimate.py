@@ -21,7 +21,6 @@ that the facet transmits at all (1 below the critical angle; tested). Units: m, 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import torch
@@ -30,12 +29,10 @@ from waterair.core.validation import check_int, check_range
 from waterair.physics.channel.facets import interception
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
-from waterair.physics.channel.model import ChannelModel, LinkEnds
-from waterair.physics.channel.montecarlo import MonteCarloLight
-from waterair.physics.channel.ray_tube import calm_sea_reference
+from waterair.physics.channel.model import LinkEnds
+from waterair.physics.channel.montecarlo import MonteCarloLight, RayEstimate
 from waterair.physics.channel.rays import FEWEST_ITERATIONS, departures, surface_hits
-from waterair.physics.optics import beam_divergence, transverse_frame, unit_vector, water_transmittance
-from waterair.physics.paths import PathSolution
+from waterair.physics.optics import transverse_frame, water_transmittance
 from waterair.physics.surface import Harmonics
 
 
@@ -96,7 +93,7 @@ def facet_share(incoming: torch.Tensor, normal: torch.Tensor, mean_slope: torch.
 
 
 @dataclass(frozen=True)
-class LocalEstimate(ChannelModel):
+class LocalEstimate(RayEstimate):
     """The local estimate as a channel model (``env.channel=montecarlo`` on a two-scale sea; slow, for
     evaluation): ``rays`` surface rays per link and step from a proposal ``proposal_beams`` beam divergences
     wide around the calm-sea departure, each sending its light to ``points`` points of the aperture. Eager
@@ -109,10 +106,6 @@ class LocalEstimate(ChannelModel):
     rays: int = 20_000
     points: int = 1
     proposal_beams: float = 0.5
-
-    needs_exact_point = False
-    compiles = False
-    prepared_keys = ("unresolved",)
 
     def __post_init__(self) -> None:
         self.check_settings(rays=self.rays, points=self.points, proposal_beams=self.proposal_beams)
@@ -127,26 +120,12 @@ class LocalEstimate(ChannelModel):
         if "proposal_beams" in settings:
             check_range("proposal_beams", settings["proposal_beams"], 0.0, 100.0, low_open=True)
 
-    def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
-        return calm_sea_reference(tx, rx, self.optics)
-
     def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> dict[str, torch.Tensor]:
         """The unresolved slope covariance ``[B, 3]`` the facet density uses; refused where it is not positive."""
         xx, xy, yy = unresolved.to(torch.float64).unbind(-1)
         if not bool(((xx > 0) & (xx * yy - xy**2 > 0)).all()):
             raise ValueError("the local estimate needs unresolved slopes (a two-scale sea with wind); a link has none")
-        return {"unresolved": unresolved.to(tx.dtype)}
-
-    def light(
-        self,
-        sea: Harmonics,
-        path: PathSolution,
-        ends: LinkEnds,
-        time: torch.Tensor,
-        prepared: Mapping[str, torch.Tensor],
-        generator: torch.Generator | None = None,
-    ) -> LightSamples:
-        return self.estimate(sea, prepared["unresolved"], ends, time, generator).light
+        return super().prepare(tx, rx, unresolved)
 
     def estimate(
         self,
@@ -157,23 +136,9 @@ class LocalEstimate(ChannelModel):
         generator: torch.Generator | None,
     ) -> MonteCarloLight:
         """The samples with the rays they came from (for :func:`.montecarlo.standard_error`); as :meth:`light`."""
-        if generator is None:
-            raise ValueError("the local estimate draws its rays from a generator; pass one")
-        tx, rx, calm = ends
-        return local_estimate(
-            sea,
-            unresolved,
-            tx,
-            rx,
-            time,
-            self.optics,
-            axis=unit_vector(calm - tx),
-            reference=unit_vector(rx - calm),
-            width=self.proposal_beams * beam_divergence(self.optics.divergence, self.optics.wavelength),
-            rays=self.rays,
-            points=self.points,
-            generator=generator,
-        )
+        tx, rx, _ = ends
+        keys = self.proposal(ends, generator)
+        return local_estimate(sea, unresolved, tx, rx, time, self.optics, rays=self.rays, points=self.points, **keys)
 
 
 def local_estimate(

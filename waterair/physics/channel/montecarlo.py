@@ -46,8 +46,65 @@ class MonteCarloLight(TensorClass):
 
 
 @dataclass(frozen=True)
-class MonteCarlo(ChannelModel):
-    """The Monte Carlo tracer as a channel model (``env.channel=montecarlo``; slow, for evaluation): ``rays``
+class RayEstimate(ChannelModel):
+    """What the Monte Carlo models share (:class:`MonteCarlo` here, :class:`~.local_estimate.LocalEstimate`):
+    eager estimates from a generator, the unresolved slope covariance as their episode constant, G_0 the exact
+    calm-sea gain, and a Gaussian proposal ``proposal_beams`` beam divergences wide around the calm-sea
+    departure. A model implements :meth:`estimate`; its ``light`` is the estimate's."""
+
+    proposal_beams: float = 1.0
+
+    needs_exact_point = False
+    compiles = False
+    prepared_keys = ("unresolved",)
+
+    def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
+        return calm_sea_reference(tx, rx, self.optics)
+
+    def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> dict[str, torch.Tensor]:
+        """The unresolved slope covariance ``[B, 3]``."""
+        return {"unresolved": unresolved.to(tx.dtype)}
+
+    def light(
+        self,
+        sea: Harmonics,
+        path: PathSolution,
+        ends: LinkEnds,
+        time: torch.Tensor,
+        prepared: Mapping[str, torch.Tensor],
+        generator: torch.Generator | None = None,
+    ) -> LightSamples:
+        return self.estimate(sea, prepared["unresolved"], ends, time, generator).light
+
+    def estimate(
+        self,
+        sea: Harmonics,
+        unresolved: torch.Tensor,
+        ends: LinkEnds,
+        time: float | torch.Tensor,
+        generator: torch.Generator | None,
+    ) -> MonteCarloLight:
+        """The samples with the rays they came from (for :func:`standard_error`); arguments as :meth:`light`."""
+        raise NotImplementedError
+
+    def proposal(self, ends: LinkEnds, generator: torch.Generator | None) -> dict:
+        """The keywords every estimate takes from the ends: the proposal's ``axis`` (the calm-sea departure) and
+        ``width`` (rad), the aperture's ``reference`` normal (the calm-sea arrival), and the ``generator``."""
+        if generator is None:
+            raise ValueError(f"the {type(self).__name__} channel draws its rays from a generator; pass one")
+        tx, rx, calm = ends
+        return {
+            "axis": unit_vector(calm - tx),
+            "reference": unit_vector(rx - calm),
+            "width": self.proposal_beams * beam_divergence(self.optics.divergence, self.optics.wavelength),
+            "generator": generator,
+        }
+
+
+@dataclass(frozen=True)
+class MonteCarlo(RayEstimate):
+    """The hit-counting tracer as a channel model (``env.channel=counting``, and ``montecarlo`` on a sea without
+    unresolved slopes; slow, for evaluation): ``rays``
     surface rays per link and step, ``facets`` unresolved-slope draws each, from a proposal
     ``proposal_beams`` beam divergences wide around the calm-sea departure, counted across the
     calm-sea arrival. Eager (it draws random numbers from the caller's generator).
@@ -58,10 +115,6 @@ class MonteCarlo(ChannelModel):
     rays: int = 20_000
     facets: int = 64
     proposal_beams: float = 1.0
-
-    needs_exact_point = False
-    compiles = False
-    prepared_keys = ("unresolved",)
 
     def __post_init__(self) -> None:
         self.check_settings(rays=self.rays, facets=self.facets, proposal_beams=self.proposal_beams)
@@ -76,25 +129,7 @@ class MonteCarlo(ChannelModel):
         if "proposal_beams" in settings:
             check_range("proposal_beams", settings["proposal_beams"], 0.0, 100.0, low_open=True)
 
-    def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
-        return calm_sea_reference(tx, rx, self.optics)
-
-    def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> dict[str, torch.Tensor]:
-        """The unresolved slope covariance ``[B, 3]`` the facets are drawn from."""
-        return {"unresolved": unresolved.to(tx.dtype)}
-
-    def light(
-        self,
-        sea: Harmonics,
-        path: PathSolution,
-        ends: LinkEnds,
-        time: torch.Tensor,
-        prepared: Mapping[str, torch.Tensor],
-        generator: torch.Generator | None = None,
-    ) -> LightSamples:
-        return self.trace(sea, prepared["unresolved"], ends, time, generator).light
-
-    def trace(
+    def estimate(
         self,
         sea: Harmonics,
         unresolved: torch.Tensor,
@@ -103,23 +138,9 @@ class MonteCarlo(ChannelModel):
         generator: torch.Generator | None,
     ) -> MonteCarloLight:
         """The hits with the rays they came from (for :func:`standard_error`); arguments as :meth:`light`."""
-        if generator is None:
-            raise ValueError("the Monte Carlo channel draws its rays from a generator; pass one")
-        tx, rx, calm = ends
-        return trace(
-            sea,
-            unresolved,
-            tx,
-            rx,
-            time,
-            self.optics,
-            axis=unit_vector(calm - tx),
-            reference=unit_vector(rx - calm),
-            width=self.proposal_beams * beam_divergence(self.optics.divergence, self.optics.wavelength),
-            rays=self.rays,
-            facets=self.facets,
-            generator=generator,
-        )
+        tx, rx, _ = ends
+        keys = self.proposal(ends, generator)
+        return trace(sea, unresolved, tx, rx, time, self.optics, rays=self.rays, facets=self.facets, **keys)
 
 
 def trace(
