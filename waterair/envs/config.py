@@ -225,12 +225,13 @@ class EnvConfig:
         A physics group given as a mapping changes only the keys it names (``sea={"wind": 8}``, or the flat
         ``wind=8``); one that names another sea keeps the shared keys and takes that sea's own defaults.
         """
-        current, changes = self.to_mapping(), nest(changes)
+        current = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}  # untouched groups stay built
+        changes = nest(changes)
         for group in PHYSICS:
             given = changes.get(group)
             if not isinstance(given, Mapping):
                 continue
-            base = current[group]
+            base = as_mapping(current[group])
             if group == "sea" and given.get("spectrum", base["spectrum"]) != base["spectrum"]:
                 base = {key: base[key] for key in SHARED_SEA_KEYS}
             changes[group] = {**base, **given}

@@ -11,6 +11,8 @@ aperture's blur in slope space. Units: m, dimensionless slopes.
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 from waterair.physics.channel.geometry import Transceiver
@@ -34,3 +36,13 @@ def interception(u1: torch.Tensor, slope: torch.Tensor) -> torch.Tensor:
     are per unit horizontal area; a ray meets the facets of slope ζ in proportion to this, so over facets
     N(ζ̄, Σ) the weight u1·(−ζ, 1) / u1·(−ζ̄, 1) averages to 1. Negative: the facet faces away from the ray."""
     return u1[..., 2] - (slope * u1[..., :2]).sum(-1)
+
+
+def slope_density(deviation: torch.Tensor, covariance: torch.Tensor) -> torch.Tensor:
+    """p_Σ(ζ) ``[...]``: the Gaussian density of a facet slope ``deviation`` ζ ``[..., 2]`` from its mean, for the
+    covariance Σ ``[..., 3]`` (σ_xx², σ_xy, σ_yy², positive definite; broadcast against ζ), docs/model.md §4.3."""
+    sxx, sxy, syy = covariance.unbind(-1)
+    dx, dy = deviation.unbind(-1)
+    determinant = sxx * syy - sxy**2
+    quadratic = syy * dx**2 - 2.0 * sxy * dx * dy + sxx * dy**2
+    return torch.exp(-0.5 * quadratic / determinant) / (2.0 * math.pi * torch.sqrt(determinant))

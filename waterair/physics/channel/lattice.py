@@ -22,14 +22,13 @@ against a fine grid in docs/model.md §4.3. Each node is one order-1 surface eva
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import torch
 
 from waterair.core.validation import check_int, check_range
-from waterair.physics.channel.facets import aperture_slope_variance, facet_normal, interception
+from waterair.physics.channel.facets import aperture_slope_variance, facet_normal, interception, slope_density
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
 from waterair.physics.channel.model import ChannelModel, LinkEnds
@@ -169,10 +168,7 @@ def two_scale_light(
     w = facet_normal(u1, u2, optics)
     w_z = w[..., 2].clamp(min=1e-6)
     needed = torch.stack((-w[..., 0] / w_z - slope_x, -w[..., 1] / w_z - slope_y), dim=-1)
-    sxx, sxy, syy = (v.unsqueeze(-1) for v in blur.unbind(-1))
-    determinant = sxx * syy - sxy**2
-    quadratic = syy * needed[..., 0] ** 2 - 2.0 * sxy * needed[..., 0] * needed[..., 1] + sxx * needed[..., 1] ** 2
-    density = torch.exp(-0.5 * quadratic / determinant) / (2.0 * math.pi * torch.sqrt(determinant))
+    density = slope_density(needed, blur.unsqueeze(1))
     facet = w / torch.linalg.vector_norm(w, dim=-1, keepdim=True)
     theta1 = torch.acos((u1 * facet).sum(-1).clamp(-1.0, 1.0))
     transmitted = water_transmittance(theta1, r1, optics.n_water, optics.n_air, optics.attenuation_per_m)

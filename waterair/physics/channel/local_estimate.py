@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import torch
 
 from waterair.core.validation import check_int, check_range
-from waterair.physics.channel.facets import interception
+from waterair.physics.channel.facets import interception, slope_density
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
 from waterair.physics.channel.model import LinkEnds
@@ -77,19 +77,15 @@ def facet_density(
     """
     jacobian, normal, valid = arrival_jacobian(incoming, outgoing, n_water, n_air)
     slope = -normal[..., :2] / normal[..., 2:].clamp(min=1e-30)
-    dx, dy = (slope - mean_slope).unbind(-1)
-    xx, xy, yy = covariance.unbind(-1)
-    determinant = xx * yy - xy**2
-    quadratic = (yy * dx**2 - 2.0 * xy * dx * dy + xx * dy**2) / determinant
-    gaussian = torch.exp(-0.5 * quadratic) / (2.0 * math.pi * torch.sqrt(determinant))
+    gaussian = slope_density(slope - mean_slope, covariance)
     return torch.where(valid, gaussian * jacobian, torch.zeros_like(jacobian)), normal
 
 
 def facet_share(incoming: torch.Tensor, normal: torch.Tensor, mean_slope: torch.Tensor) -> torch.Tensor:
     """u₁·(−ζ, 1) / u₁·(−ζ̄, 1) ``[...]``: the facet of unit ``normal`` h intercepts this share of the ray
     ``incoming`` u₁ against the mean surface of slope ``mean_slope`` ζ̄ (:func:`.facets.interception`)."""
-    slope = -normal[..., :2] / normal[..., 2:].clamp(min=1e-30)
-    return interception(incoming, slope) / interception(incoming, mean_slope.expand_as(slope))
+    facing = (incoming * normal).sum(-1) / normal[..., 2].clamp(min=1e-30)  # u₁·h / h_z = u₁·(−ζ, 1)
+    return facing / interception(incoming, mean_slope.expand_as(normal[..., :2]))
 
 
 @dataclass(frozen=True)
