@@ -8,7 +8,11 @@ observations (the quadrant spot included), rewards and the residual base control
 
 Recorded again after one physics change: the facet interception (docs/model.md §4.3) moved the full
 channel and the counting tracer on the measured-slope sea (gains +0.25 to +0.9 % on average over these
-rollouts, the bounds +0.3 to +0.7 %, G_0 not at all); every other case is still the first recording, bit for bit.
+rollouts, the bounds +0.3 to +0.7 %, G_0 not at all); and a second: the full channel on that sea now places
+a lattice for the pointing beside the bound's, on 9 × 9 nodes over ±4.5 σ instead of 7 × 7 over ±4 σ
+(docs/model.md §4.3; over these rollouts the gains −1.2 % and +0.8 %, the bounds −1.2 % and −0.1 % on average).
+Every other case is still the first recording, bit for bit: the paper's single path (`+experiment=paper`)
+among them.
 
 The vectorised math of PyTorch's CPU kernels (exp, log, sqrt and sums over SIMD lanes) rounds
 differently on different instruction sets: the Monte Carlo tracer on the measured-slope sea moves by

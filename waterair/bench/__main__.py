@@ -71,6 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     channel = sub.add_parser("channel", help="env-steps/s of each channel model on each sea, in one run")
     channel.add_argument("--sizes", type=int, nargs="+", default=[16, 1024], help="batch sizes B")
+    channel.add_argument("--lattices", nargs="+", default=[""], help='full, ocean: lattices "nodes:span" ("": default)')
     montecarlo = sub.add_parser("montecarlo", help="the full channel against the Monte Carlo reference")
     montecarlo.add_argument("--winds", type=float, nargs="+", default=[4.0, 12.0, 20.0], help="U10 (m/s)")
     montecarlo.add_argument("--seas", type=int, default=16, help="sea realisations (links) per wind")
@@ -81,6 +82,12 @@ def main(argv: list[str] | None = None) -> int:
         "--reference", choices=("local", "counting"), default="local", help="the local estimate or the counting tracer"
     )
     montecarlo.add_argument("--offset", type=float, default=0.1, help="offset ratio")
+    montecarlo.add_argument(
+        "--lattices",
+        nargs="+",
+        default=[""],
+        help='full channels "nodes:span"; "N:S:bound": no beam lattice',
+    )
     evaluation = sub.add_parser("evaluate", help="the default evaluate.py work, batched vs one policy at a time")
     training = sub.add_parser(
         "training", help="train.py's frames/s (short, long, eager, compiled, under load) vs bare PyTorch and SB3"
@@ -153,14 +160,23 @@ def main(argv: list[str] | None = None) -> int:
         print(controllers_table(record))
     elif args.suite == "channel":
         print(f"channel benchmark: {device}, {'compiled' if args.compile else 'eager'} step\n\n{ENV_HEADER}")
-        record = bench_channels(args.sizes, args.compile, args.device, args.dtype)
+        record = bench_channels(args.sizes, args.compile, args.device, args.dtype, args.lattices)
     elif args.suite == "montecarlo":
         print(MONTECARLO_HEADER)
         record = {"machine": machine(device, getattr(torch, args.dtype))}
         dtype = getattr(torch, args.dtype)
         record.update(
             bench_montecarlo(
-                args.winds, args.seas, args.steps, args.rays, args.facets, args.offset, device, dtype, args.reference
+                args.winds,
+                args.seas,
+                args.steps,
+                args.rays,
+                args.facets,
+                args.offset,
+                device,
+                dtype,
+                args.reference,
+                args.lattices,
             )
         )
         print("\n" + montecarlo_table(record))

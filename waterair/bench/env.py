@@ -31,9 +31,17 @@ SEAS = {"paper": {"spectrum": "jonswap"}, "ocean": {"spectrum": "elfouhaily", "n
 
 
 def worker(
-    batch: int, solver: str, compile_kernel: bool, device: str, dtype: str, channel: str = "single_path", sea="paper"
+    batch: int,
+    solver: str,
+    compile_kernel: bool,
+    device: str,
+    dtype: str,
+    channel: str = "single_path",
+    sea="paper",
+    lattice: str = "",
 ) -> dict:
-    """Time raw ``env.step`` and ``env.rollout`` at one batch size (runs inside the worker)."""
+    """Time raw ``env.step`` and ``env.rollout`` at one batch size (runs inside the worker); ``lattice``
+    "nodes:span" sets the full channel's lattice (default: the env's)."""
     baseline_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     start = time.perf_counter()
     env = WaterAirEnv(
@@ -46,6 +54,7 @@ def worker(
         max_steps=10**6,
         channel=channel,
         **SEAS[sea],
+        **lattice_settings(lattice),
     )
     td = env.reset()
     generator = torch.Generator().manual_seed(0)
@@ -137,21 +146,35 @@ def compile_times(batch: int = 16) -> dict:
     return {"batch": batch, **record}
 
 
-def run_worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype: str, channel: str, sea: str):
+def lattice_settings(lattice: str) -> dict:
+    """``"nodes:span"`` as the env's lattice keywords (none for "")."""
+    if not lattice:
+        return {}
+    nodes, span = lattice.split(":")
+    return {"lattice_nodes": int(nodes), "lattice_span": float(span)}
+
+
+def run_worker(
+    batch: int, solver: str, compile_kernel: bool, device: str, dtype: str, channel: str, sea: str, lattice: str = ""
+):
     """One :func:`worker` in a fresh process; its record."""
     args = [sys.executable, "-m", "waterair.bench.env", str(batch), solver, str(int(compile_kernel))]
-    done = subprocess.run([*args, device, dtype, channel, sea], capture_output=True, text=True, check=False)
+    done = subprocess.run([*args, device, dtype, channel, sea, lattice], capture_output=True, text=True, check=False)
     if done.returncode != 0:
         raise RuntimeError(f"env benchmark worker B={batch} {solver} {channel} failed:\n{done.stderr[-2000:]}")
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def bench_channels(sizes, compile_kernel: bool, device: str, dtype: str) -> dict:
-    """The channel models side by side, in one run: (channel, sea) for every B, each in its own process."""
+def bench_channels(sizes, compile_kernel: bool, device: str, dtype: str, lattices=("",)) -> dict:
+    """The channel models side by side, in one run: (channel, sea) for every B, each in its own process; the
+    full channel on the measured-slope sea once per lattice ("nodes:span", "" the default)."""
     rows = []
+    cases = [("single_path", "paper", ""), ("full", "paper", ""), ("single_path", "ocean", "")]
+    cases += [("full", "ocean", lattice) for lattice in lattices]
     for batch in sizes:
-        for channel, sea in (("single_path", "paper"), ("full", "paper"), ("single_path", "ocean"), ("full", "ocean")):
-            rows.append(run_worker(batch, "newton", compile_kernel, device, dtype, channel, sea))
+        for channel, sea, lattice in cases:
+            rows.append(run_worker(batch, "newton", compile_kernel, device, dtype, channel, sea, lattice))
+            rows[-1]["lattice"] = lattice
             print(env_row(rows[-1]), flush=True)
     resolved = resolve_device(device)
     return {
@@ -208,13 +231,11 @@ def env_row(r: dict) -> str:
 def _label(r: dict) -> str:
     if r.get("channel", "single_path") == "single_path" and r.get("sea", "paper") == "paper":
         return r["solver"]
-    return f"{r['channel']}, {r['sea']}"
+    lattice = f" ({r['lattice'].replace(':', ' nodes ±')} σ)" if r.get("lattice") else ""
+    return f"{r['channel']}, {r['sea']}{lattice}"
 
 
 if __name__ == "__main__":
-    batch_arg, solver_arg, compile_arg, device_arg, dtype_arg, channel_arg, sea_arg = sys.argv[1:8]
-    print(
-        json.dumps(
-            worker(int(batch_arg), solver_arg, bool(int(compile_arg)), device_arg, dtype_arg, channel_arg, sea_arg)
-        )
-    )
+    batch_arg, solver_arg, compile_arg, device_arg, dtype_arg, channel_arg, sea_arg, lattice_arg = sys.argv[1:9]
+    settings = (solver_arg, bool(int(compile_arg)), device_arg, dtype_arg, channel_arg, sea_arg, lattice_arg)
+    print(json.dumps(worker(int(batch_arg), *settings)))

@@ -5,8 +5,8 @@ step estimated once by the reference, the local estimate (:class:`waterair.physi
 ``reference="local"``) or the hit-counting tracer (:class:`waterair.physics.channel.MonteCarlo`,
 ``"counting"``), and the samples weighted for three fixed
 pointings (straight facing, flat-sea Snell, and pointed at the fast model's brightest sample), and
-the fast model's gain (:class:`waterair.physics.channel.TwoScale` around the tracked point) for the
-same pointings. Per wind and pointing: mean power ratio (fast / reference) with the
+the fast model's gain (:class:`waterair.physics.channel.TwoScale`, its lattice placed for each pointing)
+for the same pointings. Per wind and pointing: mean power ratio (fast / reference) with the
 reference's pooled standard error, scintillation index of each, per-step correlation; and the
 tracer's speed (surface rays and ray-facet pairs per second) and the comparison's wall time.
 """
@@ -25,7 +25,6 @@ from waterair.physics.channel import (
     MonteCarlo,
     TwoScale,
     brightest,
-    received_gain,
     standard_error,
 )
 from waterair.physics.optics import unit_vector
@@ -39,6 +38,12 @@ precise at the other pointings (its variance comes from the resolved surface, no
 component around the tracked path's departure, tried, did not lower it)."""
 
 
+POINTINGS = ("straight", "straight_up", "snell", "off", "brightest")
+"""Straight facing (both ends vertical), straight up (the transmitter vertical, the receiver at flat-sea Snell),
+flat-sea Snell, 0.05 rad beyond it (the transmitter tilted further in the incidence plane) and the bound's."""
+OFF_RAD = 0.05
+
+
 def bench_montecarlo(
     winds: list[float],
     seas: int,
@@ -49,10 +54,13 @@ def bench_montecarlo(
     device: torch.device,
     dtype,
     reference_model: str = "local",
+    lattices=("",),
 ) -> dict:
-    """Rows per (wind, pointing), plus the reference's speed per wind (``facets``: the counting tracer's draws)."""
+    """Rows per (wind, lattice, pointing), plus the reference's speed per wind (``facets``: the counting
+    tracer's draws). ``lattices``: the full channels compared, "nodes:span" ("" the default), with ":bound"
+    for the bound's lattice alone (no pointing given to :meth:`TwoScale.light`)."""
     optics = Transceiver()
-    fast_model = TwoScale(optics)
+    fast_models = {lattice: _lattice_model(lattice, optics) for lattice in lattices}
     beams = PROPOSAL_BEAMS[reference_model]
     if reference_model == "local":
         tracer, facets = LocalEstimate(optics, rays=rays, points=1, proposal_beams=beams), 1
@@ -64,15 +72,13 @@ def bench_montecarlo(
         surface = WaveSurface.sample(sea, seas, seed=0, dtype=dtype, device=device)
         tx, rx = (v.to(device).expand(seas, 3).contiguous() for v in LinkGeometry(offset_ratio=offset).positions(dtype))
         flat = flat_sea_point(tx, rx, optics.n_water, optics.n_air)
-        snell = unit_vector(flat - tx), unit_vector(flat - rx)
-        straight = torch.zeros_like(tx), torch.zeros_like(tx)
-        straight[0][:, 2], straight[1][:, 2] = 1.0, -1.0
+        fixed = fixed_pointings(tx, flat, rx)
         ends = LinkEnds(tx, rx, flat)
-        prepared = fast_model.prepare(tx, rx, surface.unresolved)
+        prepared = {lattice: model.prepare(tx, rx, surface.unresolved) for lattice, (model, _) in fast_models.items()}
         generator = torch.Generator(device=device).manual_seed(int(wind * 1000))
-        fast = {name: [] for name in ("straight", "snell", "brightest")}
-        reference = {name: [] for name in fast}
-        error = {name: [] for name in fast}
+        fast = {(lattice, name): [] for lattice in fast_models for name in POINTINGS}
+        reference = {key: [] for key in fast}
+        error = {key: [] for key in fast}
         point, traced_s = None, 0.0
         started = time.perf_counter()
         for step in range(steps):
@@ -80,18 +86,20 @@ def bench_montecarlo(
             path = solve_path(surface, tx, rx, t, init=None if point is None else point[:, :2])
             point = path.point
             time_now = torch.full((seas,), t, dtype=dtype, device=device)
-            light = fast_model.light(surface.harmonics, path, ends, time_now, prepared)
             clock = time.perf_counter()
             result = tracer.estimate(surface.harmonics, surface.unresolved, ends, t, generator)
             if device.type == "cuda":
                 torch.cuda.synchronize()
             traced_s += time.perf_counter() - clock
-            pointings = (("straight", straight), ("snell", snell), ("brightest", brightest(light)))
-            for name, (tx_dir, rx_dir) in pointings:
-                fast[name].append(received_gain(light, tx_dir, rx_dir, optics).double().cpu())
-                gain, se = standard_error(result, tx_dir, rx_dir, optics)
-                reference[name].append(gain.double().cpu())
-                error[name].append(se.double().cpu())
+            for lattice, (model, pointed) in fast_models.items():
+                unpointed = model.light(surface.harmonics, path, ends, time_now, prepared[lattice])
+                for name, (tx_dir, rx_dir) in {**fixed, "brightest": brightest(unpointed)}.items():
+                    given = ends._replace(pointing=tx_dir) if pointed else ends
+                    light = model.light(surface.harmonics, path, given, time_now, prepared[lattice])
+                    fast[lattice, name].append(model.receive(light, tx_dir, rx_dir).gain.double().cpu())
+                    gain, se = standard_error(result, tx_dir, rx_dir, optics)
+                    reference[lattice, name].append(gain.double().cpu())
+                    error[lattice, name].append(se.double().cpu())
         wall_s = time.perf_counter() - started
         speeds.append(
             {
@@ -101,9 +109,9 @@ def bench_montecarlo(
                 "wall_s": wall_s,
             }
         )
-        for name in fast:
-            f, r, e = (torch.stack(values) for values in (fast[name], reference[name], error[name]))
-            rows.append({"wind": wind, "pointing": name, **compare(f, r, e)})
+        for lattice, name in fast:
+            f, r, e = (torch.stack(values[lattice, name]) for values in (fast, reference, error))
+            rows.append({"wind": wind, "lattice": lattice or "default", "pointing": name, **compare(f, r, e)})
             print(montecarlo_row(rows[-1]), flush=True)
     return {
         "seas": seas,
@@ -118,6 +126,26 @@ def bench_montecarlo(
     }
 
 
+def fixed_pointings(tx: torch.Tensor, flat: torch.Tensor, rx: torch.Tensor) -> dict:
+    """The pointings of :data:`POINTINGS` that do not depend on the light: (tx_dir, rx_dir) each ``[B, 3]``."""
+    snell = unit_vector(flat - tx), unit_vector(flat - rx)
+    up = torch.zeros_like(tx)
+    up[:, 2] = 1.0
+    theta = torch.acos(snell[0][:, 2]) + OFF_RAD
+    across = unit_vector(torch.cat((snell[0][:, :2], torch.zeros_like(tx[:, :1])), dim=-1))[:, :2]
+    off = torch.cat((across * torch.sin(theta).unsqueeze(-1), torch.cos(theta).unsqueeze(-1)), dim=-1)
+    return {"straight": (up, -up), "straight_up": (up, snell[1]), "snell": snell, "off": (off, snell[1])}
+
+
+def _lattice_model(lattice: str, optics: Transceiver) -> tuple[TwoScale, bool]:
+    """A "nodes:span[:bound]" spec as (the model, whether its light is given the pointing)."""
+    parts = lattice.split(":") if lattice else []
+    settings = {}
+    if len(parts) >= 2 and parts[0]:
+        settings = {"nodes": int(parts[0]), "span": float(parts[1])}
+    return TwoScale(optics, **settings), "bound" not in parts
+
+
 def compare(fast: torch.Tensor, reference: torch.Tensor, error: torch.Tensor) -> dict:
     """Statistics of ``[steps, seas]`` gains: the fast model against the reference with its errors."""
     mean_ref = reference.mean()
@@ -130,6 +158,8 @@ def compare(fast: torch.Tensor, reference: torch.Tensor, error: torch.Tensor) ->
         # each step's error relative to the reference's mean, and the reference's own noise in the same units
         "step_error": ((f - r).pow(2).mean().sqrt() / mean_ref).item(),
         "step_se": (error.pow(2).mean().sqrt() / mean_ref).item(),
+        # the same with the reference's noise taken out (its variance subtracted from the squared error)
+        "step_error_corrected": (((f - r).pow(2).mean() - noise).clamp(min=0).sqrt() / mean_ref).item(),
         "pooled_se": pooled.item(),
         "si_fast": (f.var() / f.mean() ** 2).item(),
         "si_reference": ((r.var() - noise) / r.mean() ** 2).item(),
@@ -139,16 +169,17 @@ def compare(fast: torch.Tensor, reference: torch.Tensor, error: torch.Tensor) ->
 
 
 MONTECARLO_HEADER = (
-    "| U10 (m/s) | pointing | mean ratio | pooled SE | per-step error (rms) | reference SE (rms) | SI fast "
-    "| SI reference | correlation | noise ceiling |\n"
-    "|---|---|---|---|---|---|---|---|---|---|"
+    "| U10 (m/s) | lattice | pointing | mean ratio | pooled SE | per-step error (rms) | reference SE (rms) "
+    "| per-step error, noise out | SI fast | SI reference | correlation | noise ceiling |\n"
+    "|---|---|---|---|---|---|---|---|---|---|---|---|"
 )
 
 
 def montecarlo_row(row: dict) -> str:
     return (
-        f"| {row['wind']:g} | {row['pointing']} | {row['ratio']:.3f} | {100 * row['pooled_se']:.2f} % "
-        f"| {100 * row['step_error']:.2f} % | {100 * row['step_se']:.2f} % "
+        f"| {row['wind']:g} | {row.get('lattice', 'default')} | {row['pointing']} | {row['ratio']:.3f} "
+        f"| {100 * row['pooled_se']:.2f} % | {100 * row['step_error']:.2f} % | {100 * row['step_se']:.2f} % "
+        f"| {100 * row.get('step_error_corrected', float('nan')):.2f} % "
         f"| {row['si_fast']:.3f} | {row['si_reference']:.3f} | {row['correlation']:.3f} | {row['noise_ceiling']:.3f} |"
     )
 

@@ -18,7 +18,7 @@ from waterair.envs.kernel import MEASUREMENT_KEYS, SURFACE_KEYS, StepConstants
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import Sensor
 from waterair.envs.stepper import Stepper
-from waterair.physics.channel import LinkEnds
+from waterair.physics.channel import LinkEnds, pointing
 from waterair.physics.paths import flat_sea_point, solve_path
 from waterair.physics.surface import WaveSurface
 
@@ -331,7 +331,8 @@ class WaterAirEnv(EnvBase):
         upright = torch.zeros(rows.numel(), 2, device=self.device, dtype=dtype)
         tilts = {"tx_tilt": upright, "rx_tilt": upright}
         noise = self.sensor.draw(rows.numel(), dtype, self.device)
-        light = self.stepper.reset_light(self.surface[rows], LinkEnds(tx, rx, flat), prepared, path, zero)
+        ends = LinkEnds(tx, rx, flat, pointing(upright, up=True))
+        light = self.stepper.reset_light(self.surface[rows], ends, prepared, path, zero)
         measurement, packet, stored, _, feature = kernel.record(
             self.constants, tilts, path, light, reference, flat, noise
         )

@@ -202,14 +202,15 @@ def solve(c: StepConstants, state: dict, time: torch.Tensor, start=None, iterati
 
 
 def channel_light(
-    c: StepConstants, state: dict, path: PathSolution, time: torch.Tensor, generator: torch.Generator | None = None
+    c: StepConstants, state: dict, path: PathSolution, moved: dict, generator: torch.Generator | None = None
 ) -> LightSamples:
     """The channel's light for the links of ``state`` (their seas, ends and the channel's per-episode
-    constants) through the tracked ``path`` at ``time`` ``[B]`` (s)."""
+    constants) through the tracked ``path``, at the time and transmitter pointing of the gimbals ``moved``."""
     sea = Harmonics(*(state[key] for key in SURFACE_KEYS))
-    ends = LinkEnds(state["tx_position"], state["rx_position"], state["flat_point"])
+    tx_dir = pointing(moved["tx_tilt"], up=True)
+    ends = LinkEnds(state["tx_position"], state["rx_position"], state["flat_point"], tx_dir)
     prepared = {key: state[key] for key in c.channel.prepared_keys}
-    return c.channel.light(sea, path, ends, time, prepared, generator)
+    return c.channel.light(sea, path, ends, moved["time"], prepared, generator)
 
 
 def record(c: StepConstants, tilts: dict, path: PathSolution, light: LightSamples, reference_gain, flat_point, noise):
@@ -264,7 +265,7 @@ def conclude(c: StepConstants, state: dict, moved: dict, solution: Solve, noise,
     tx, rx = state["tx_position"], state["rx_position"]
     path = finish_path(solution.point, solution.slope, tx, rx, solution.converged, solution.iterations, n_w, n_a)
     if light is None:
-        light = channel_light(c, state, path, moved["time"])
+        light = channel_light(c, state, path, moved)
     measurement, packet, stored, tracked, feature = record(
         c, moved, path, light, state["reference_gain"], state["flat_point"], noise
     )

@@ -54,7 +54,7 @@ class Stepper:
             solution = kernel.solve(c, state, moved["time"])
             n_w, n_a = c.optics.n_water, c.optics.n_air
             path = _path(solution, state, n_w, n_a)
-            light = kernel.channel_light(c, state, path, moved["time"], self.generator)
+            light = kernel.channel_light(c, state, path, moved, self.generator)
             return kernel.conclude(c, state, moved, solution, noise, light)
         if self.solver == "centroid":
             moved = kernel.advance(c, state, action)

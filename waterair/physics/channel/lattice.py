@@ -14,10 +14,13 @@ resolved sea lies where ζ = 0, each lit by its lensing, and the caustics betwee
 (4.8) is (4.4) summed over points, blurred by Σ (for Σ → 0 it tends to that sum). The aperture
 adds its own blur: a disk of diameter D averages the pattern over (D/4)² per axis.
 
-It is integrated by the trapezoid rule on an n × n lattice around the tracked refraction point,
-shaped by the Gaussian the integrand would be on a calm sea (the patch the blur spreads the light
-over, times the beam's footprint): spectrally accurate for Gaussian-like integrands, and measured
-against a fine grid in docs/model.md §4.3. Each node is one order-1 surface evaluation.
+It is integrated by the trapezoid rule on an n × n lattice shaped by the Gaussian the integrand would be
+on a calm sea (the patch the blur spreads the light over, times the beam's footprint): spectrally
+accurate for Gaussian-like integrands. Two lattices of that shape: one around the tracked refraction
+point, independent of the pointing, for the upper bound; one where the beam meets the patch (the
+product of the patch and the footprint around the point the beam is aimed at), for the gain and the
+quadrant detector, so that a pointing far off the patch (straight up) still has nodes under its light.
+Measured against the local estimate in docs/model.md §4.3. Each node is one order-1 surface evaluation.
 """
 
 from __future__ import annotations
@@ -30,18 +33,22 @@ import torch
 from waterair.core.validation import check_int, check_range
 from waterair.physics.channel.facets import aperture_slope_variance, facet_normal, interception, slope_density
 from waterair.physics.channel.geometry import Transceiver
-from waterair.physics.channel.light import LightSamples
+from waterair.physics.channel.light import LightSamples, Reception, receive
 from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.channel.ray_tube import calm_sea_reference
 from waterair.physics.optics import beam_divergence, water_transmittance
 from waterair.physics.paths import PathSolution, flat_sea_point, near_calm_point
 from waterair.physics.surface import Harmonics, harmonic_sums
 
-LATTICE_NODES = 7
-"""Nodes per axis of the lattice (n² surface evaluations per link): within 2 % (rms) of a fine grid
-at 4-20 m/s for pointings within one beam divergence of the best (docs/model.md §4.3)."""
-LATTICE_SPAN = 4.0
-"""Half-width of the lattice in standard deviations of its Gaussian (the trapezoid rule's tails)."""
+LATTICE_NODES = 9
+"""Nodes per axis of each lattice (2 n² surface evaluations per link with the beam's own): chosen with
+:data:`LATTICE_SPAN` from the accuracy-cost table against the local estimate (docs/model.md §4.3)."""
+LATTICE_SPAN = 4.5
+"""Half-width of the lattice in standard deviations of its Gaussian: wide enough not to clip the skewed
+integrand's tail (4 clipped 0.3-0.5 %), with nodes no further apart than 1.125 of them."""
+BEAM_LATTICE_FROM = (0.25, 1.0)
+"""Distances (lattice standard deviations) between the two lattices' centres over which the gain moves from the
+lattice around the tracked point to the beam's (:func:`beam_share`)."""
 LARGEST_PATCH = 0.8
 """Prior width (m) of the patch: a floor on its precision, where the blur would spread it further."""
 
@@ -50,7 +57,8 @@ LARGEST_PATCH = 0.8
 class TwoScale(ChannelModel):
     """Every point of the resolved surface, blurred by the unresolved slopes and the aperture (eq. 4.8), on
     a ``nodes`` × ``nodes`` lattice of half-width ``span`` standard deviations around the tracked point
-    (the calm-sea point where that is lost): the full channel on a sea with unresolved slopes.
+    (the calm-sea point where that is lost), and, where :meth:`light` is given the transmitter's pointing,
+    a second one where the beam meets the patch: the full channel on a sea with unresolved slopes.
 
     Attributes: nodes, odd in [3, 31]; span in [1, 8].
     """
@@ -59,7 +67,7 @@ class TwoScale(ChannelModel):
     span: float = LATTICE_SPAN
 
     needs_exact_point = False
-    prepared_keys = ("lattice_basis", "blur")
+    prepared_keys = ("lattice_basis", "blur", "lattice_pull")
 
     def __post_init__(self) -> None:
         self.check_settings(nodes=self.nodes, span=self.span)
@@ -78,9 +86,10 @@ class TwoScale(ChannelModel):
         return calm_sea_reference(tx, rx, self.optics)
 
     def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> dict[str, torch.Tensor]:
-        """The lattice's basis ``[B, 2, 2]`` and blur ``[B, 3]`` (:func:`lattice_shape`, in float64)."""
-        basis, blur = lattice_shape(tx.double(), rx.double(), unresolved.double(), self.optics)
-        return {"lattice_basis": basis.to(tx.dtype), "blur": blur.to(tx.dtype)}
+        """The lattice's basis ``[B, 2, 2]``, blur ``[B, 3]`` and pull ``[B, 2, 2]`` (:func:`lattice_shape`, in
+        float64)."""
+        basis, blur, pull = lattice_shape(tx.double(), rx.double(), unresolved.double(), self.optics)
+        return {"lattice_basis": basis.to(tx.dtype), "blur": blur.to(tx.dtype), "lattice_pull": pull.to(tx.dtype)}
 
     def light(
         self,
@@ -94,18 +103,63 @@ class TwoScale(ChannelModel):
         followed = near_calm_point(path, ends.calm_point).unsqueeze(-1)
         centre = torch.where(followed, path.point[:, :2], ends.calm_point[:, :2])
         basis, blur = prepared["lattice_basis"], prepared["blur"]
-        return two_scale_light(sea, ends.tx, ends.rx, time, centre, basis, blur, self.optics, self.nodes, self.span)
+
+        def lattice(at: torch.Tensor) -> LightSamples:
+            return two_scale_light(sea, ends.tx, ends.rx, time, at, basis, blur, self.optics, self.nodes, self.span)
+
+        everywhere = lattice(centre)
+        if ends.pointing is None:
+            return everywhere
+        shift = (prepared["lattice_pull"] @ (beam_aim(ends.tx, ends.pointing) - centre).unsqueeze(-1))[..., 0]
+        on_beam = lattice(centre + shift)
+        share = beam_share(torch.linalg.vector_norm(torch.linalg.solve(basis, shift), dim=-1)).unsqueeze(-1)
+        blended = [_scaled(everywhere, 1.0 - share), _scaled(on_beam, share)]
+        pointed: LightSamples = torch.cat([everywhere, *blended], dim=1)  # type: ignore[assignment]
+        return pointed
+
+    def receive(self, light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor) -> Reception:
+        """With the pointing given to :meth:`light`: the bound from the lattice around the tracked point
+        (independent of the pointing), the gain and the detector's reading from its blend with the beam's."""
+        nodes = self.nodes**2
+        if light.shape[1] == nodes:
+            return receive(light, tx_dir, rx_dir, self.optics)
+        return receive(light[:, nodes:], tx_dir, rx_dir, self.optics, bound_light=light[:, :nodes])
+
+
+def _scaled(light: LightSamples, factor: torch.Tensor) -> LightSamples:
+    return LightSamples(
+        weight=light.weight * factor, departure=light.departure, arrival=light.arrival, batch_size=light.batch_size
+    )
+
+
+def beam_share(apart: torch.Tensor) -> torch.Tensor:
+    """The beam's lattice's share of the gain ``[B]`` for lattice centres ``apart`` (in the lattice's standard
+    deviations): 0 within :data:`BEAM_LATTICE_FROM`'s first value, where the lattice around the tracked point
+    covers the beam's light and the gain is read from the same samples as the bound, 1 beyond its second,
+    a smoothstep between (both lattices hold there)."""
+    near, far = BEAM_LATTICE_FROM
+    x = ((apart - near) / (far - near)).clamp(0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def beam_aim(tx: torch.Tensor, pointing: torch.Tensor) -> torch.Tensor:
+    """Where the transmitter's beam axis meets the mean sea surface, (x, y) ``[B, 2]`` (m), for T ``[B, 3]``
+    (below it) and a pointing ``[B, 3]`` (unit, up)."""
+    return tx[:, :2] - pointing[:, :2] * (tx[:, 2] / pointing[:, 2]).unsqueeze(-1)
 
 
 def lattice_shape(tx: torch.Tensor, rx: torch.Tensor, slope_covariance: torch.Tensor, optics: Transceiver):
-    """Per-link lattice basis U ``[B, 2, 2]`` (m) and the blur covariance ``[B, 3]`` (σ_xx, σ_xy, σ_yy).
+    """Per-link lattice basis U ``[B, 2, 2]`` (m), the blur covariance ``[B, 3]`` (σ_xx, σ_xy, σ_yy) and the
+    pull ``[B, 2, 2]`` that moves the lattice toward where the beam is aimed.
 
     From the calm-sea geometry of each link (``tx``, ``rx`` ``[B, 3]``, m) and its unresolved slope
     covariance ``[B, 3]``: the blur adds the aperture's spread (D/4 per axis of receiver
     displacement, through |∂ζ/∂R|); the patch is the Gaussian p_Σ(A s) with A = H_flat / w_z the
     calm sea's map from surface steps to needed slopes; the beam footprint is r1 ω'/2 per axis
     (stretched by 1/cos θ1 along the incidence plane). U's columns are the principal axes of
-    their product, scaled by its standard deviations.
+    their product, scaled by its standard deviations. A beam aimed at a surface point a instead of the
+    patch's centre c moves the product's mean to c + K (a − c), K = (P + C⁻¹)⁻¹ C⁻¹ the pull (P the
+    patch's precision, C the footprint's covariance), and leaves its covariance as it is.
     """
     point = flat_sea_point(tx, rx, optics.n_water, optics.n_air)
     d1, d2 = point - tx, rx - point
@@ -128,8 +182,10 @@ def lattice_shape(tx: torch.Tensor, rx: torch.Tensor, slope_covariance: torch.Te
     footprint = (r1 * beam_divergence(optics.divergence, optics.wavelength) / 2.0) ** 2
     along = horizontal.unsqueeze(-1) * horizontal.unsqueeze(-2)
     covariance = footprint[:, None, None] * (eye + (1.0 / cos1**2 - 1.0)[:, None, None] * along)
-    values, vectors = torch.linalg.eigh(torch.linalg.inv(precision + torch.linalg.inv(covariance)))
-    return vectors * torch.sqrt(values).unsqueeze(-2), blur
+    spread = torch.linalg.inv(covariance)
+    product = torch.linalg.inv(precision + spread)
+    values, vectors = torch.linalg.eigh(product)
+    return vectors * torch.sqrt(values).unsqueeze(-2), blur, product @ spread
 
 
 def two_scale_light(

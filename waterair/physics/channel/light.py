@@ -63,7 +63,12 @@ class Reception(NamedTuple):
 
 
 def receive(
-    light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver, along_path: bool = False
+    light: LightSamples,
+    tx_dir: torch.Tensor,
+    rx_dir: torch.Tensor,
+    optics: Transceiver,
+    along_path: bool = False,
+    bound_light: LightSamples | None = None,
 ) -> Reception:
     """Gain, upper bound, best pointing and the quadrant detector's reading for pointings ``[B, 3]``.
 
@@ -71,20 +76,26 @@ def receive(
     light's centroid (:func:`light_centroid`). ``along_path``: the light is one ray along the tracked
     path, as in the paper (docs/model.md §4.1): the best pointing is along it, G_UB = W n_c²/sin² ω_A,
     and the detector reads the ray's arrival wherever it falls within the field of view.
+    ``bound_light``: the same light sampled independently of the pointing, the one the bound is searched
+    over, where ``light``'s samples were placed for the pointing (the two-scale lattice, docs/model.md §4.3);
+    where the pointing received more than the search found, the bound is that gain (G_UB ≥ G always).
     """
     shares = pointed_gains(light, tx_dir, rx_dir, optics)
+    gain = shares.sum(-1)
     if along_path:
         departure, arrival = light.departure[:, 0], light.arrival[:, 0]
         bound = light.weight[:, 0] * peak_arrival_gain(optics.half_fov, optics.concentrator_index)
         alpha_a = angle_between(rx_dir, -arrival)
         spot_arrival, lit = arrival, arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index) > 0
     else:
-        bound, departure, boresight = upper_bound(light, optics)
+        bound, departure, boresight = upper_bound(light if bound_light is None else bound_light, optics)
+        if bound_light is not None:  # a second quadrature of the same light: the bound is at least its gain
+            bound = torch.maximum(bound, gain)
         arrival = -boresight
         alpha_a = angle_between(rx_dir, boresight)
         spot_arrival, lit = light_centroid(light, shares, rx_dir)
     return Reception(
-        gain=shares.sum(-1),
+        gain=gain,
         upper_bound=bound,
         valid=bound > 0,
         departure=departure,

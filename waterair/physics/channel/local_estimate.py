@@ -132,7 +132,7 @@ class LocalEstimate(RayEstimate):
         generator: torch.Generator | None,
     ) -> MonteCarloLight:
         """The samples with the rays they came from (for :func:`.montecarlo.standard_error`); as :meth:`light`."""
-        tx, rx, _ = ends
+        tx, rx = ends.tx, ends.rx
         keys = self.proposal(ends, generator)
         return local_estimate(sea, unresolved, tx, rx, time, self.optics, rays=self.rays, points=self.points, **keys)
 

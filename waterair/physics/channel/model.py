@@ -32,11 +32,13 @@ from waterair.physics.surface import Harmonics
 
 class LinkEnds(NamedTuple):
     """Where each link's ends are: ``tx`` T and ``rx`` R, and the calm-sea refraction point between them,
-    each ``[B, 3]`` (m)."""
+    each ``[B, 3]`` (m); and, where it is known, the transmitter's ``pointing`` (unit, up, ``[B, 3]``), for
+    a model that places its samples where the beam goes (the two-scale lattice)."""
 
     tx: torch.Tensor
     rx: torch.Tensor
     calm_point: torch.Tensor
+    pointing: torch.Tensor | None = None
 
 
 @dataclass(frozen=True)

@@ -92,7 +92,7 @@ class RayEstimate(ChannelModel):
         ``width`` (rad), the aperture's ``reference`` normal (the calm-sea arrival), and the ``generator``."""
         if generator is None:
             raise ValueError(f"the {type(self).__name__} channel draws its rays from a generator; pass one")
-        tx, rx, calm = ends
+        tx, rx, calm = ends.tx, ends.rx, ends.calm_point
         return {
             "axis": unit_vector(calm - tx),
             "reference": unit_vector(rx - calm),
@@ -138,7 +138,7 @@ class MonteCarlo(RayEstimate):
         generator: torch.Generator | None,
     ) -> MonteCarloLight:
         """The hits with the rays they came from (for :func:`standard_error`); arguments as :meth:`light`."""
-        tx, rx, _ = ends
+        tx, rx = ends.tx, ends.rx
         keys = self.proposal(ends, generator)
         return trace(sea, unresolved, tx, rx, time, self.optics, rays=self.rays, facets=self.facets, **keys)
 
