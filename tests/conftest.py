@@ -20,7 +20,6 @@ ROOT = Path(__file__).resolve().parents[1]
 
 TINY = [
     "env.num_envs=8",
-    "env.sea.n_freq=16",
     "env.sea.n_dir=8",
     "env.max_steps=50",
     "collector.frames_per_batch=400",
@@ -36,6 +35,9 @@ TINY = [
     "env.compile_kernel=false",
 ]
 """Overrides that shrink a training run to seconds: a few links, a coarse sea, small networks, eager."""
+PAPER_PHYSICS = {"spectrum": "jonswap", "channel": "single_path"}
+"""The paper's sea and channel (the defaults until they moved to the measured-slope sea and the full channel),
+as env keys: for tests of what was calibrated on them."""
 F64 = torch.float64
 
 

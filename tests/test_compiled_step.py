@@ -9,9 +9,10 @@ observed log-intensity feature shows as up to ~1e-4 absolute.
 Three small graphs cover what compiles: the observation presets are subsets of one observation with
 every extra (each part is built by its own code whichever preset asks for it), read through the
 realistic sensor (noise, latency, saturation, gating) with residual actions on the quadrant tracker
-and the training defaults' per-link draws, on the paper's sea and single path; and the full channel
-on each sea (the ray tube on the paper's, the two-scale lattice on the ocean's). Each test compiles
-its own graph: none relies on another's compile, whatever the order.
+and the training defaults' per-link draws, on the paper's sea and single path (whose exact point
+needs the finishing graphs); and the full channel on each sea (the ray tube on the paper's, the
+two-scale lattice on the ocean's: the defaults). Each test compiles its own graph: none relies on
+another's compile, whatever the order.
 """
 
 import pytest
@@ -27,13 +28,14 @@ from waterair.physics.surface import WaveSurface
 
 COMPARED = ("observation", "gain", "gain_upper_bound", "intensity", "reward", "path_valid")
 OCEAN = {"spectrum": "elfouhaily", "n_wavenumbers": 24, "n_dir": 8}
+PAPER = {"spectrum": "jonswap", "channel": "single_path"}  # the single path converges the tracked point: finishing
 CONVERGING = {"wind_range": None, "offset_range": None, "newton_iterations": 8}
 """The ray tube needs the exact path point: at the default sea and offset, with iterations enough that
 the step's graph converges, it compiles without the finishing graphs (which the first graph covers)."""
 GRAPHS = {
-    "every-extra": ({"observation_extras": OBSERVATION_EXTRAS, "residual_base": "aoa_tracker"}, 8, 100),
-    "ray-tube": ({"channel": "full", "n_freq": 32, "n_dir": 16, **CONVERGING}, 2, 40),
-    "two-scale": ({"channel": "full", **OCEAN}, 4, 40),
+    "every-extra": ({"observation_extras": OBSERVATION_EXTRAS, "residual_base": "aoa_tracker", **PAPER}, 8, 100),
+    "ray-tube": ({"channel": "full", "spectrum": "jonswap", "n_freq": 32, "n_dir": 16, **CONVERGING}, 2, 40),
+    "two-scale": ({"channel": "full", **OCEAN}, 4, 40),  # the defaults' sea and channel, a coarser sea
 }
 """Each graph: its keys over the quadrant preset with the realistic sensor, its batch and its steps."""
 

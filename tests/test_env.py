@@ -9,7 +9,7 @@ from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.sensors import intensity_feature
 
-SMALL_SEA = {"n_freq": 16, "n_dir": 8}
+SMALL_SEA = {"n_wavenumbers": 12, "n_dir": 8}  # the default sea (measured slopes) and channel (full), coarse
 
 
 def small_env(**kwargs) -> WaterAirEnv:
@@ -37,7 +37,7 @@ def test_one_line_construction_uses_defaults():
 @pytest.mark.slow
 @pytest.mark.parametrize("wind", [4.0, 12.0, 25.0])
 def test_long_random_rollouts_are_finite_and_below_the_upper_bound(wind):
-    env = WaterAirEnv(num_envs=64, wind=wind, seed=1, n_freq=32, n_dir=16, max_steps=250)
+    env = WaterAirEnv(num_envs=64, wind=wind, seed=1, n_wavenumbers=24, n_dir=8, max_steps=250)
     rollout = env.rollout(250, break_when_any_done=False)
     nxt = rollout["next"]
     for key in ("observation", "reward", "gain", "gain_upper_bound", "intensity"):

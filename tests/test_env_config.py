@@ -48,7 +48,12 @@ def field_type(key: str) -> str:
 
 
 INTEGER_KEYS = {key for key in RANGES if field_type(key) == "int"}
-SEA_OF = {"sea.n_wavenumbers": "elfouhaily", "sea.wavenumber_cutoff": "elfouhaily"}
+SEA_OF = {
+    "sea.n_wavenumbers": "elfouhaily",
+    "sea.wavenumber_cutoff": "elfouhaily",
+    "sea.gamma": "jonswap",
+    "sea.n_freq": "jonswap",
+}
 """The keys only one sea has, and that sea (the default sea is JONSWAP)."""
 
 
@@ -204,3 +209,32 @@ def test_the_yaml_states_each_physics_default_the_physics_object_has():
         assert composed == {"sea": kind(), "geometry": LinkGeometry(), "optics": Transceiver()}
         channel = ("lattice_nodes", "lattice_span", "montecarlo_rays", "montecarlo_facets")
         assert {key: env[key] for key in channel} == {key: getattr(EnvConfig(), key) for key in channel}
+
+
+@pytest.mark.parametrize("entry", ["config", "evaluate"])
+def test_the_defaults_are_the_measured_slope_sea_and_the_full_channel_and_the_paper_is_one_preset_away(entry):
+    # train.py (config) and evaluate.py compose the same physics as the env class on its own
+    from conftest import compose_config
+
+    default = compose_config(entry).env
+    assert (default.sea.spectrum, default.channel) == ("elfouhaily", "full")
+    assert (EnvConfig().sea, EnvConfig().channel) == (ElfouhailySea(), "full")
+    assert EnvConfig.from_mapping({"sea": {"wind": 8.0}}).sea == ElfouhailySea(wind=8.0)  # a sea that names none
+    assert (default.lattice_nodes, default.lattice_span) == (EnvConfig().lattice_nodes, EnvConfig().lattice_span)
+    paper = compose_config(entry, ["+experiment=paper"]).env
+    assert (paper.sea.spectrum, paper.channel) == ("jonswap", "single_path")
+    sea = {key: value for key, value in paper.sea.items() if key != "spectrum"}
+    assert JonswapSea(**sea) == JonswapSea()  # the paper's sea as it always was: 64 × 32, γ 3.3
+
+
+def test_a_saved_config_that_names_no_channel_or_sea_runs_the_physics_it_ran():
+    # the releases before the defaults moved left channel and spectrum out when at their defaults
+    from waterair.envs.legacy import saved
+
+    old = saved({"num_envs": 4, "sea": {"wind": 8.0}})
+    assert EnvConfig.from_mapping(old).channel == "single_path"
+    assert EnvConfig.from_mapping(old).sea == JonswapSea(wind=8.0)
+    first_release = saved({"wind": 8.0, "offset_ratio": 0.3})  # flat keys, no channel, no spectrum
+    assert EnvConfig.from_mapping(first_release).sea == JonswapSea(wind=8.0)
+    named = {"channel": "full", "sea": {"spectrum": "elfouhaily", "wind": 8.0}}
+    assert saved(named) == named  # a config written since names both: unchanged

@@ -24,7 +24,6 @@ from waterair.training.export import CHECK, export_policy, short_check
 
 TRAIN_TINY = [
     "env.num_envs=8",
-    "env.sea.n_freq=16",
     "env.sea.n_dir=8",
     "env.max_steps=50",
     "total_frames=800",
@@ -41,7 +40,6 @@ TRAIN_TINY = [
     "env.compile_kernel=false",
 ]
 EVAL_TINY = [
-    "env.sea.n_freq=16",
     "env.sea.n_dir=8",
     "env.compile_kernel=false",
     "bootstrap.resamples=200",
@@ -66,8 +64,7 @@ FIGURES = (
     "gain_vs_wind",
     "outage_vs_wind",
     "gain_vs_azimuth",
-    "jonswap_spectrum",
-    "jonswap_directional",
+    "elfouhaily_spectrum",  # the default sea's
     "wave_surface",
 )
 
@@ -166,9 +163,18 @@ def test_every_policy_sees_the_same_seas_and_stays_under_the_upper_bound(tiny_ru
     kinds = [p["kind"] for p in result.policies]
     assert kinds == ["bound", "learned", "learned"] + ["baseline"] * (6 + 2)  # + the controllers with the run's sensing
     for scenario, traces in result.traces.items():
-        reference = traces["upper_bound"]["gain_upper_bound"]
+        # clamping only raises a bound: the search's own is the least over the policies
+        searched_bound = torch.stack([trace["gain_upper_bound"] for trace in traces.values()]).amin(0)
         for label, trace in traces.items():
-            assert torch.equal(trace["gain_upper_bound"], reference), (scenario, label)
+            # the bound is the sea's, the same for every policy, except where a pointing received more than the
+            # search found (the full channel reads the gain from a lattice placed for it: docs/model.md §4.5)
+            searched = trace["gain"] < trace["gain_upper_bound"]
+            if label != "upper_bound":  # whose gain is the bound
+                assert searched.double().mean() > 0.9, (scenario, label)
+            # to float32 rounding: a policy of another interface runs in an env batched otherwise, and the lattice's
+            # sums over harmonics round with the batch's layout
+            got, expected = trace["gain_upper_bound"][searched], searched_bound[searched]
+            torch.testing.assert_close(got, expected, rtol=1e-5, atol=0, msg=label)
             assert (trace["gain"] <= trace["gain_upper_bound"] * (1 + 1e-5) + 1e-12).all(), (scenario, label)
         # different policies did act differently on those seas
         assert not torch.equal(traces["straight_facing"]["gain"], traces["no_alignment"]["gain"])

@@ -13,7 +13,7 @@ from waterair.envs.controllers import AoATracker
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.rewards import Reward
 
-SMALL = dict(num_envs=6, sea={"n_freq": 16, "n_dir": 8}, seed=4)
+SMALL = dict(num_envs=6, sea={"n_wavenumbers": 12, "n_dir": 8}, seed=4)
 SENSING = dict(
     observation_extras=("spot", "spot_valid", "geometry"),
     latency_steps=1,

@@ -13,7 +13,7 @@ from waterair.physics.link import LinkBudget, fec_power, received_power, snr
 from waterair.training.builders import make_env
 from waterair.training.config import validate
 
-SMALL_ENV = ["env.num_envs=4", "env.sea.n_freq=16", "env.sea.n_dir=8", "env.compile_kernel=false"]
+SMALL_ENV = ["env.num_envs=4", "env.sea.n_wavenumbers=12", "env.sea.n_dir=8", "env.compile_kernel=false"]
 
 
 @given(

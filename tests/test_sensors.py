@@ -4,7 +4,7 @@ import math
 
 import pytest
 import torch
-from conftest import compose_config
+from conftest import PAPER_PHYSICS, compose_config
 from omegaconf import OmegaConf
 from torchrl.envs.utils import check_env_specs
 
@@ -14,7 +14,7 @@ from waterair.envs.controllers import AoATracker, IntensityDither
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.sensors import PACKET_PARTS, Sensor, intensity_feature, intensity_from_feature
 
-SMALL = {"n_freq": 16, "n_dir": 8, "seed": 3}
+SMALL = {"n_freq": 16, "n_dir": 8, "seed": 3, **PAPER_PHYSICS}  # calibrated on the paper's sea and channel
 QUADRANT = ("spot", "spot_valid", "history", "action_history", "geometry")
 
 
@@ -106,7 +106,9 @@ def test_intensity_feature_round_trips():
 def test_every_observation_preset_passes_the_spec_check(preset, num_envs):
     keys = OmegaConf.to_container(compose_config("config", [f"env/observation={preset}"]).env, resolve=True)
     # eager: the specs do not depend on compiling (tests/test_compiled_step.py compares the two)
-    config = EnvConfig.from_mapping({**keys, "num_envs": num_envs, "n_freq": 16, "n_dir": 8, "compile_kernel": False})
+    config = EnvConfig.from_mapping(
+        {**keys, "num_envs": num_envs, "n_freq": 16, "n_dir": 8, "compile_kernel": False, **PAPER_PHYSICS}
+    )
     env = WaterAirEnv(config)
     check_env_specs(env)
     sizes = {"paper": 8, "intensity": 8 + 4 + 16, "quadrant": 8 + 2 + 1 + 2}
@@ -123,7 +125,14 @@ def test_geometry_reads_the_drone_position_over_the_vertical_distance():
 def test_on_a_nearly_calm_sea_the_aoa_tracker_reaches_the_upper_bound():
     # A long, gentle swell (U10 0.5 m/s over 1e7 m: slopes of a few mrad): the one step of delay costs little.
     env = WaterAirEnv(
-        num_envs=16, wind=0.5, fetch=1e7, seed=0, n_freq=32, n_dir=16, observation_extras=("spot", "spot_valid")
+        num_envs=16,
+        wind=0.5,
+        fetch=1e7,
+        seed=0,
+        n_freq=32,
+        n_dir=16,
+        observation_extras=("spot", "spot_valid"),
+        **PAPER_PHYSICS,
     )
     out = env.rollout(100, AoATracker(env), break_when_any_done=False)["next"]
     ratio = out["gain"].double().mean() / out["gain_upper_bound"].double().mean()
@@ -133,7 +142,7 @@ def test_on_a_nearly_calm_sea_the_aoa_tracker_reaches_the_upper_bound():
 @pytest.mark.slow
 def test_the_controllers_beat_flat_snell_at_12_m_s():
     """The prototype's guide values: about 0.96 (quadrant) and 0.80 (intensity only) of UB, flat-Snell 0.70."""
-    env = WaterAirEnv(num_envs=32, seed=4, observation_extras=("spot", "spot_valid"))
+    env = WaterAirEnv(num_envs=32, seed=4, observation_extras=("spot", "spot_valid"), **PAPER_PHYSICS)
     ratios = {}
     for policy in (AoATracker, IntensityDither, FlatSeaSnell):
         env.set_seed(4)
@@ -148,15 +157,23 @@ def test_rotating_the_whole_scene_leaves_flat_snell_and_the_upper_bound_unchange
     traces = []
     for angle in (0.0, 120.0):
         env = WaterAirEnv(
-            num_envs=24, seed=9, n_freq=32, n_dir=16, offset_azimuth_values=(angle,), wind_direction_values=(angle,)
+            num_envs=24,
+            seed=9,
+            n_freq=32,
+            n_dir=16,
+            offset_azimuth_values=(angle,),
+            wind_direction_values=(angle,),
+            **PAPER_PHYSICS,
         )
         out = env.rollout(60, FlatSeaSnell(env), break_when_any_done=False)["next"]
         traces.append((out["gain"].double(), out["gain_upper_bound"].double()))
     (gain_a, upper_a), (gain_b, upper_b) = traces
     torch.testing.assert_close(upper_b.mean(), upper_a.mean(), rtol=1e-3, atol=0)
     torch.testing.assert_close(gain_b.mean(), gain_a.mean(), rtol=1e-3, atol=0)
-    assert not torch.allclose(upper_a, WaterAirEnv(num_envs=24, seed=9, n_freq=32, n_dir=16, offset_azimuth_deg=120.0)
-                              .rollout(60, break_when_any_done=False)["next", "gain_upper_bound"].double())  # fmt: skip
+    unrotated_sea = WaterAirEnv(num_envs=24, seed=9, n_freq=32, n_dir=16, offset_azimuth_deg=120.0, **PAPER_PHYSICS)
+    assert not torch.allclose(
+        upper_a, unrotated_sea.rollout(60, break_when_any_done=False)["next", "gain_upper_bound"].double()
+    )
 
 
 def test_per_link_azimuth_and_wind_direction_are_drawn_from_their_ranges():

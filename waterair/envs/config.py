@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
-from waterair.envs.legacy import SHARED_SEA_KEYS, as_mapping, nest
+from waterair.envs.legacy import DEFAULT_SPECTRUM, SHARED_SEA_KEYS, as_mapping, nest
 from waterair.physics.channel import (
     LATTICE_NODES,
     LATTICE_SPAN,
@@ -31,7 +31,7 @@ from waterair.physics.channel import (
     Transceiver,
     channel_model,
 )
-from waterair.physics.sea import JonswapSea, SeaState, sea_state
+from waterair.physics.sea import ElfouhailySea, SeaState, sea_state
 
 ACTION_MODES = ("absolute", "delta", "residual")
 RESIDUAL_BASES = ("flat_snell", "aoa_tracker")
@@ -71,11 +71,13 @@ class EnvConfig:
     dtype: str = "float32"
     seed: int | None = None  # None: nondeterministic
     # the physics, each validated where it is defined (docs/model.md); a mapping of its keys is built into it
-    sea: SeaState = JonswapSea()  # env.sea.*; presets env/spectrum=jonswap|elfouhaily, env/sea=calm|moderate|rough
+    sea: SeaState = ElfouhailySea()  # env.sea.*; presets env/spectrum=elfouhaily|jonswap, env/sea=calm|moderate|rough
     geometry: LinkGeometry = LinkGeometry()  # env.geometry.*: where the ends are (docs/model.md §0)
     optics: Transceiver = Transceiver()  # env.optics.*: the ends' optics (docs/model.md §4-§5)
     # channel (docs/model.md §4)
-    channel: str = "single_path"  # single_path | full | montecarlo | counting (the last two for evaluation: slow)
+    channel: str = (
+        "full"  # full | single_path (the paper's) | montecarlo | counting (the last two for evaluation: slow)
+    )
     lattice_nodes: int = LATTICE_NODES  # full channel on a two-scale sea: nodes per axis of the surface lattice
     lattice_span: float = LATTICE_SPAN  # full channel: the lattice's half-width, in standard deviations of its Gaussian
     montecarlo_rays: int = MonteCarlo.rays  # montecarlo and counting channels: surface rays per link and step
@@ -328,7 +330,7 @@ def _physics(group: str, value, kind: type, build):
         raise ValueError(f"env.{group}.{error}") from None
 
 
-def _build_sea(spectrum: str = "jonswap", **keys) -> SeaState:
+def _build_sea(spectrum: str = DEFAULT_SPECTRUM, **keys) -> SeaState:
     try:
         return sea_state(spectrum, **keys)
     except ValueError as error:

@@ -30,6 +30,8 @@ GROUPS = {
 """The env's physics groups and the keys each has (the sea's: those of every sea, and its name)."""
 MOVED = {key: f"{group}.{key}" for group, keys in GROUPS.items() for key in keys}
 """Old flat key → its path under ``env`` now (``wind`` → ``sea.wind``)."""
+DEFAULT_SPECTRUM = "elfouhaily"
+"""The sea of a config that names none (``EnvConfig``'s default, the measured-slope sea)."""
 SPECTRUM_OPTIONS = {"paper": "jonswap", "ocean": "elfouhaily"}
 """Old option of the ``env/spectrum`` group → its name now (the name of the sea it chooses)."""
 SHARED_SEA_KEYS = ("wind", "fetch", "wind_direction_deg", "amplitude")
@@ -51,7 +53,7 @@ def nest(values: Mapping) -> dict:
     nested_sea = out.get("sea")
     if "spectrum" in flat and nested_sea is not None:
         nested_sea = dict(nested_sea) if isinstance(nested_sea, Mapping) else as_mapping(nested_sea)
-        if nested_sea.get("spectrum", "jonswap") != flat["spectrum"]:
+        if nested_sea.get("spectrum", DEFAULT_SPECTRUM) != flat["spectrum"]:
             out["sea"] = {key: value for key, value in nested_sea.items() if key in SHARED_SEA_KEYS}
     for key, value in flat.items():
         group, name = MOVED[key].split(".")
@@ -62,12 +64,31 @@ def nest(values: Mapping) -> dict:
             out[group] = {**as_mapping(nested), name: value}
     sea = out.get("sea")
     if isinstance(sea, Mapping):
-        kind = SPECTRA.get(sea.get("spectrum", "jonswap"))
+        kind = SPECTRA.get(sea.get("spectrum", DEFAULT_SPECTRUM))
         if kind is not None:
             own = {*_names(kind), "spectrum"}
             dropped = {key for key in flat if MOVED[key].startswith("sea.") and key not in own}
             out["sea"] = {key: value for key, value in sea.items() if key not in dropped}
     return out
+
+
+BEFORE_THE_OCEAN = {"channel": "single_path", "spectrum": "jonswap"}
+"""The defaults a saved config was written under if it does not name these keys: until the measured-slope sea
+and the full channel became the defaults, a config that left them out ran the paper's sea and channel."""
+
+
+def saved(values: Mapping) -> dict:
+    """A saved run's env config (``config.yaml``) as :func:`nest` folds it, and with the keys whose default
+    has moved since its release set to what they were then (:data:`BEFORE_THE_OCEAN`), so that it runs the
+    physics it ran. Configs written since name every key, so they are unchanged."""
+    values = {"channel": BEFORE_THE_OCEAN["channel"], **values}
+    sea = values.get("sea")
+    if "spectrum" not in values and not (isinstance(sea, Mapping) and "spectrum" in sea):
+        if isinstance(sea, Mapping):
+            values["sea"] = {**sea, "spectrum": BEFORE_THE_OCEAN["spectrum"]}
+        else:  # flat, as the first releases wrote it
+            values["spectrum"] = BEFORE_THE_OCEAN["spectrum"]
+    return nest(values)
 
 
 def as_mapping(physics) -> dict:

@@ -18,7 +18,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from waterair.agents.checkpoint import load_state
-from waterair.envs.legacy import nest
+from waterair.envs import legacy
 from waterair.training.checkpoint import CHECKPOINT
 from waterair.training.config import CONF_DIR, validate
 
@@ -82,9 +82,10 @@ def plan_resume(cfg: DictConfig, overrides: list[str]) -> ResumePlan:
 
 
 def upgraded(saved: DictConfig) -> DictConfig:
-    """A run's config with the env's flat keys of the first releases folded into their groups (``env.sea.wind``)."""
+    """A run's config with the env's flat keys of the first releases folded into their groups (``env.sea.wind``),
+    and the physics it ran where it left a key at a default that has since moved (:func:`legacy.saved`)."""
     if "env" in saved:
-        saved.env = OmegaConf.create(nest(OmegaConf.to_container(saved.env, resolve=False)))
+        saved.env = OmegaConf.create(legacy.saved(OmegaConf.to_container(saved.env, resolve=False)))
     return saved
 
 
