@@ -21,6 +21,8 @@ meaningful. Timings are wall-clock medians after a warm-up.
   (paper, ocean), in one run (:mod:`.env`).
 * ``montecarlo``: the full channel against the Monte Carlo reference on the measured-slope sea:
   mean power, scintillation, correlation, and the tracer's rays per second (:mod:`.montecarlo`).
+* ``cutoff``: the local estimate's mean power and scintillation index as more of the sea is resolved
+  (k_c = 10, 40, 100 rad/m): where the two-scale model stops (:mod:`.cutoff`).
 * ``evaluate``: the default evaluation (shipped policies, every baseline, S1-S3), all policies in
   one batch against one rollout per policy (:mod:`.evaluate`).
 
@@ -37,6 +39,7 @@ import torch
 from waterair.bench.census import bench_census, census_table
 from waterair.bench.common import machine
 from waterair.bench.controllers import bench_controllers, controllers_table
+from waterair.bench.cutoff import CUTOFF_HEADER, bench_cutoff
 from waterair.bench.env import ENV_HEADER, bench_channels, bench_env
 from waterair.bench.evaluate import bench_evaluate, evaluate_table
 from waterair.bench.montecarlo import MONTECARLO_HEADER, bench_montecarlo, montecarlo_table
@@ -115,6 +118,12 @@ def main(argv: list[str] | None = None) -> int:
     census.add_argument("--times", type=float, nargs="+", default=[1.0, 7.0], help="instants per sea (s)")
     census.add_argument("--spacing", type=float, default=0.0, help="between Newton starts (m); 0: λ_c/4, ≤ 8 cm")
     census.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
+    cutoff = sub.add_parser("cutoff", help="the local estimate's mean and scintillation as k_c rises (float64)")
+    cutoff.add_argument("--winds", type=float, nargs="+", default=[4.0, 12.0, 20.0], help="U10 (m/s)")
+    cutoff.add_argument("--cutoffs", type=float, nargs="+", default=[10.0, 40.0, 100.0], help="k_c (rad/m)")
+    cutoff.add_argument("--seas", type=int, default=48, help="sea realisations per point")
+    cutoff.add_argument("--times", type=float, nargs="+", default=[10.0, 10.7, 11.4, 12.1, 12.8, 13.5], help="s")
+    cutoff.add_argument("--rays", type=int, default=2500, help="surface rays per link and instant")
     totals = sub.add_parser("summary", help="print the speed targets as ratios from the suites' JSON files")
     totals.add_argument("folder", type=Path, nargs="?", default=Path("outputs/bench"))
     controllers = sub.add_parser("controllers", help="step time the classical controllers and sensors add")
@@ -124,9 +133,9 @@ def main(argv: list[str] | None = None) -> int:
     for p in (physics, env, channel, montecarlo):
         p.add_argument("--dtype", choices=["float32", "float64"], default="float32")
     training.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
-    for p in (physics, env, evaluation, controllers, channel, montecarlo):
+    for p in (physics, env, evaluation, controllers, channel, montecarlo, cutoff):
         p.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto")
-        if p is not montecarlo:
+        if p not in (montecarlo, cutoff):
             p.add_argument("--compile", action="store_true", help="evaluate the surface through torch.compile")
         p.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
     args = parser.parse_args(argv)
@@ -161,6 +170,10 @@ def main(argv: list[str] | None = None) -> int:
     elif args.suite == "channel":
         print(f"channel benchmark: {device}, {'compiled' if args.compile else 'eager'} step\n\n{ENV_HEADER}")
         record = bench_channels(args.sizes, args.compile, args.device, args.dtype, args.lattices)
+    elif args.suite == "cutoff":
+        print(CUTOFF_HEADER)
+        record = {"machine": machine(device, torch.float64)}
+        record.update(bench_cutoff(args.winds, args.cutoffs, args.seas, args.times, args.rays, device))
     elif args.suite == "montecarlo":
         print(MONTECARLO_HEADER)
         record = {"machine": machine(device, getattr(torch, args.dtype))}
