@@ -172,5 +172,6 @@ def test_the_readme_tour_runs_as_written():
     printed = dict(line.split(" ", 1) for line in done.stdout.strip().splitlines())
     intensity = {name: float(value.removeprefix("tensor(").rstrip(")")) for name, value in printed.items()}
     assert 0.8 < intensity["single_path"] < 1.2  # aligned along the exact path: about the calm-sea gain
-    # the ray tube on the paper's sea at 12 m/s: the tracked point carries 0.77 of the light on average
-    assert 0.6 < intensity["full"] < 0.95  # (docs/model.md §4.2)
+    # the full channel on the measured-slope sea at 12 m/s: the unresolved slopes spread the beam after the
+    # surface, and the paper's one path gives 1.6-2.6x the received power (docs/model.md §4)
+    assert 1.6 < intensity["single_path"] / intensity["full"] < 2.6
