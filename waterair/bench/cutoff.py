@@ -16,6 +16,7 @@ import time
 
 import torch
 
+from waterair.bench.montecarlo import scintillation_index
 from waterair.physics import LinkGeometry, Transceiver, WaveSurface, flat_sea_point, sea_state
 from waterair.physics.channel import LinkEnds, standard_error
 from waterair.physics.channel.local_estimate import LocalEstimate
@@ -29,20 +30,21 @@ RESAMPLES = 400
 def bench_cutoff(winds, cutoffs, seas: int, times, rays: int, device: torch.device) -> dict:
     """Rows per (wind, cutoff): 16 directions, the default's wavenumber bins per decade, float64."""
     optics, rows = Transceiver(), []
+    tx, rx = (
+        v.to(device).expand(seas, 3).contiguous() for v in LinkGeometry(offset_ratio=0.1).positions(torch.float64)
+    )
+    flat = flat_sea_point(tx, rx, optics.n_water, optics.n_air)
+    snell, ends = (unit_vector(flat - tx), unit_vector(flat - rx)), LinkEnds(tx, rx, flat)
+    tracer = LocalEstimate(optics, rays=rays, points=1, proposal_beams=0.5)
     for wind in winds:
         for cutoff in cutoffs:
             bins = round(48 * math.log(cutoff / 0.4) / math.log(DEFAULT_CUTOFF / 0.4))
             sea = sea_state(wind=wind, spectrum="elfouhaily", n_dir=16, wavenumber_cutoff=cutoff, n_wavenumbers=bins)
             surface = WaveSurface.sample(sea, seas, seed=31, dtype=torch.float64, device=device)
-            ends = LinkGeometry(offset_ratio=0.1).positions(torch.float64)
-            tx, rx = (v.to(device).expand(seas, 3).contiguous() for v in ends)
-            flat = flat_sea_point(tx, rx, optics.n_water, optics.n_air)
-            snell = unit_vector(flat - tx), unit_vector(flat - rx)
-            tracer = LocalEstimate(optics, rays=rays, points=1, proposal_beams=0.5)
             generator = torch.Generator(device=device).manual_seed(int(wind * 100 + cutoff))
             started, gains, errors = time.perf_counter(), [], []
             for t in times:
-                light = tracer.estimate(surface.harmonics, surface.unresolved, LinkEnds(tx, rx, flat), t, generator)
+                light = tracer.estimate(surface.harmonics, surface.unresolved, ends, t, generator)
                 gain, error = standard_error(light, *snell, optics)
                 gains.append(gain.cpu())
                 errors.append(error.cpu())
@@ -56,21 +58,17 @@ def bench_cutoff(winds, cutoffs, seas: int, times, rays: int, device: torch.devi
 
 def statistics(gains: torch.Tensor, errors: torch.Tensor) -> dict:
     """Mean, its sea-to-sea standard error, and the scintillation index of ``[times, seas]`` gains."""
-
-    def index(g, e):
-        return ((g.var() - e.pow(2).mean()) / g.mean() ** 2).item()
-
     generator = torch.Generator().manual_seed(0)
     means, indices = [], []
     for _ in range(RESAMPLES):
         rows = torch.randint(0, gains.shape[1], (gains.shape[1],), generator=generator)
         means.append(gains[:, rows].mean().item())
-        indices.append(index(gains[:, rows], errors[:, rows]))
+        indices.append(scintillation_index(gains[:, rows], errors[:, rows]))
     mean, bootstrapped = gains.mean().item(), torch.tensor(indices)
     return {
         "mean": mean,
         "mean_se": torch.tensor(means).std().item() / mean,
-        "si": index(gains, errors),
+        "si": scintillation_index(gains, errors),
         "si_low": bootstrapped.quantile(0.05).item(),
         "si_high": bootstrapped.quantile(0.95).item(),
     }

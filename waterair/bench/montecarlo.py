@@ -146,6 +146,12 @@ def _lattice_model(lattice: str, optics: Transceiver) -> tuple[TwoScale, bool]:
     return TwoScale(optics, **settings), "bound" not in parts
 
 
+def scintillation_index(gains: torch.Tensor, errors: torch.Tensor) -> float:
+    """The scintillation index of estimated ``gains`` with their estimates' own noise (``errors``, their standard
+    errors, same shape) taken out of the variance."""
+    return ((gains.var() - errors.pow(2).mean()) / gains.mean() ** 2).item()
+
+
 def compare(fast: torch.Tensor, reference: torch.Tensor, error: torch.Tensor) -> dict:
     """Statistics of ``[steps, seas]`` gains: the fast model against the reference with its errors."""
     mean_ref = reference.mean()
@@ -162,7 +168,7 @@ def compare(fast: torch.Tensor, reference: torch.Tensor, error: torch.Tensor) ->
         "step_error_corrected": (((f - r).pow(2).mean() - noise).clamp(min=0).sqrt() / mean_ref).item(),
         "pooled_se": pooled.item(),
         "si_fast": (f.var() / f.mean() ** 2).item(),
-        "si_reference": ((r.var() - noise) / r.mean() ** 2).item(),
+        "si_reference": scintillation_index(r, error),
         "correlation": correlation.item(),
         "noise_ceiling": math.sqrt(max(0.0, 1.0 - (noise / r.var()).item())),
     }

@@ -31,7 +31,7 @@ from waterair.physics.channel import (
     Transceiver,
     channel_model,
 )
-from waterair.physics.sea import ElfouhailySea, SeaState, sea_state
+from waterair.physics.sea import SeaState, sea_state
 
 ACTION_MODES = ("absolute", "delta", "residual")
 RESIDUAL_BASES = ("flat_snell", "aoa_tracker")
@@ -71,13 +71,11 @@ class EnvConfig:
     dtype: str = "float32"
     seed: int | None = None  # None: nondeterministic
     # the physics, each validated where it is defined (docs/model.md); a mapping of its keys is built into it
-    sea: SeaState = ElfouhailySea()  # env.sea.*; presets env/spectrum=elfouhaily|jonswap, env/sea=calm|moderate|rough
+    sea: SeaState = sea_state(DEFAULT_SPECTRUM)  # env.sea.*; presets env/spectrum=elfouhaily|jonswap, env/sea=...
     geometry: LinkGeometry = LinkGeometry()  # env.geometry.*: where the ends are (docs/model.md §0)
     optics: Transceiver = Transceiver()  # env.optics.*: the ends' optics (docs/model.md §4-§5)
     # channel (docs/model.md §4)
-    channel: str = (
-        "full"  # full | single_path (the paper's) | montecarlo | counting (the last two for evaluation: slow)
-    )
+    channel: str = "full"  # full | single_path (the paper's) | montecarlo | counting (the last two: slow)
     lattice_nodes: int = LATTICE_NODES  # full channel on a two-scale sea: nodes per axis of the surface lattice
     lattice_span: float = LATTICE_SPAN  # full channel: the lattice's half-width, in standard deviations of its Gaussian
     montecarlo_rays: int = MonteCarlo.rays  # montecarlo and counting channels: surface rays per link and step
