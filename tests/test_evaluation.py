@@ -54,6 +54,19 @@ EVAL_TINY = [
     "scenarios.S4.azimuths_deg=[0.0,90.0]",
     "scenarios.S4.realisations=2",
     "scenarios.S4.steps=8",
+    "scenarios.S5=null",  # its own test
+]
+S5_TINY = [
+    "scenarios.S1=null",
+    "scenarios.S2=null",
+    "scenarios.S3=null",
+    "scenarios.S4=null",
+    "scenarios.S5.divergences_mrad=[10.0,50.0]",
+    "scenarios.S5.winds=[20.0]",
+    "scenarios.S5.offset_ratios=[0.1,0.5]",
+    "scenarios.S5.realisations=2",
+    "scenarios.S5.steps=8",
+    "scenarios.S5.power_sweep.powers_w=[1.0e-5,1.0e-4,1.0e-3,1.0e-2]",
 ]
 FIGURES = (
     "gain_vs_time",
@@ -70,7 +83,10 @@ FIGURES = (
 
 
 def eval_cfg(*overrides):
-    return compose_config("evaluate", [*EVAL_TINY, *overrides])
+    """The tiny evaluation config; S5 stays in when ``overrides`` set one of its keys."""
+    study = any(o.lstrip("+").startswith("scenarios.S5.") for o in overrides)
+    tiny = [o for o in EVAL_TINY if not (study and o == "scenarios.S5=null")]
+    return compose_config("evaluate", [*tiny, *overrides])
 
 
 @pytest.fixture(scope="module")
@@ -115,7 +131,7 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert {p.name for p in written} >= {"metrics.json", "metrics.csv", "report.md"}
 
     data = json.loads((tmp_path / "metrics.json").read_text())
-    assert data["schema_version"] == 3
+    assert data["schema_version"] == 4
     assert data["link"]["power_w"] == 0.05 and data["link"]["fec_power"] == pytest.approx(3.16e-8, rel=0.01)
     labels = [p["label"] for p in data["policies"]]
     references = ["tracking", "aoa_tracker", "intensity_dither", "flat_snell", "straight_facing", "no_alignment"]
@@ -151,7 +167,69 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
 
 
 def _same_point(a: dict, b: dict) -> bool:
-    return all(a[key] == b[key] for key in ("scenario", "wind", "offset_ratio", "offset_azimuth_deg"))
+    return all(a[key] == b[key] for key in ("scenario", "wind", "offset_ratio", "offset_azimuth_deg", "divergence"))
+
+
+def test_the_divergence_study_writes_its_tables_figures_and_power_sweep_on_its_own_link(tmp_path):
+    policy = write_policy(tmp_path / "policy.pt", observation_size=8)
+    cfg = eval_cfg(f"checkpoint={policy}", *S5_TINY, "baselines=[flat_snell,aoa_tracker,no_alignment]")
+    result = evaluate(cfg, progress=lambda _: None)
+    out = tmp_path / "out"
+    written = {p.name for p in write_outputs(result, out, cfg, physics=False)}
+    assert written == {"metrics.json", "metrics.csv", "outage_vs_power.csv", "report.md", "rate_vs_divergence_20ms.png",
+                       "outage_vs_power.png"}  # fmt: skip
+    for name in ("rate_vs_divergence_20ms", "outage_vs_power"):
+        assert (out / f"{name}.png").stat().st_size > 5000
+    data = json.loads((out / "metrics.json").read_text())
+    (study,) = data["scenarios"]
+    assert study["divergences"] == [0.01, 0.05] and study["link"] == {"cutoff_hz": 1.0e9, "power_w": 0.001}
+    labels = [p["label"] for p in data["policies"]]
+    assert len(data["rows"]) == 2 * 2 * len(labels) == 2 * 2 * 5
+    for row in data["rows"]:
+        # the received power is the mean gain through the study's own link at the row's divergence, by hand
+        w = row["divergence"] * math.sqrt(1 + (5.2e-7 / (math.pi * row["divergence"] ** 2)) ** 2)  # ω_D' (eq. 9.2)
+        a_det = math.pi * 0.05**2 / 4 * math.sin(0.17) ** 2  # eq. 9.3, n_c = 1
+        per_gain = 0.9 * 1.0e-3 * 2 / (math.pi * w**2) * a_det  # T_f P_t (J_0/P_t) A_det
+        by_hand = 10 * math.log10(row["mean_gain"] * per_gain * 1e3) if row["mean_gain"] > 0 else -math.inf
+        assert row["received_power_dbm"] == pytest.approx(by_hand, abs=1e-9)
+        assert 0.0 <= row["rate_held"] <= row["rate"] / 0.99 + 1e-6 and row["rate"] <= 2.0e9  # the 1 GHz front end
+        bound = next(r for r in data["rows"] if r["policy"] == "upper_bound" and _same_point(r, row))
+        assert row["received_power_dbm"] <= bound["received_power_dbm"] + 1e-4
+    # each policy's best divergence is where its mean rate is highest
+    for best in study["best_divergence"]:
+        rates = {r["divergence"]: r["rate"] for r in data["rows"] if r["policy"] == best["policy"]
+                 and r["offset_ratio"] == best["offset_ratio"]}  # fmt: skip
+        assert best["rate"] == max(rates.values()) and rates[best["divergence"]] == best["rate"]
+    # outage against power: never rises with power, and at the study's own 1 mW it is the row's outage
+    sweep = data["power_sweep"]
+    assert len(sweep) == len(labels) * 2 * 4
+    for label in labels:
+        for offset in (0.1, 0.5):
+            curve = [r for r in sweep if r["policy"] == label and r["offset_ratio"] == offset]
+            assert [r["power_w"] for r in curve] == [1.0e-5, 1.0e-4, 1.0e-3, 1.0e-2]
+            assert all(a["outage"] >= b["outage"] for a, b in zip(curve, curve[1:], strict=False)), curve
+            row = result.row("S5", label, (20.0, offset, 0.0), 0.05)
+            assert curve[2]["outage"] == row["outage"]
+    assert curve[0]["outage"] == 1.0  # no light: never above the FEC limit
+    report = (out / "report.md").read_text()
+    assert "1 mW at 520 nm, APD (M = 40) with a 1000 MHz front end" in report
+    assert "### Each policy's best divergence" in report and "### Outage against transmit power" in report
+    learned = labels[1]  # what it gains over flat-sea Snell and the quadrant tracker, each at its best divergence
+    assert f"| 20 | 10% | {learned} | flat_snell | " in report and f"| 20 | 50% | {learned} | aoa_tracker | " in report
+
+
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        ("scenarios.S5.link.power_w=-1", r"^scenarios\.S5\.link\.power_w = -1"),
+        ("scenarios.S5.power_sweep.wind=12.0", r"^scenarios\.S5\.power_sweep\.wind = 12 must be one of"),
+        ("scenarios.S5.divergences_mrad=[0.1]", r"^scenarios\.S5\.divergences_mrad\[0\] = 0\.1 is out of range"),
+        ("+scenarios.S5.link.colour=1", r"^scenarios\.S5\.link\.colour is not a known key"),
+    ],
+)
+def test_the_divergence_study_rejects_bad_values_naming_their_key(override, message):
+    with pytest.raises(ValueError, match=message):
+        prepare(eval_cfg(*S5_TINY, override))
 
 
 @pytest.mark.slow

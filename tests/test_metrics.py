@@ -43,8 +43,13 @@ def test_link_metrics_are_the_budget_of_each_step_and_outage_starts_at_the_fec_p
     assert 0.0 < m["outage"] < 1.0
     assert m["ber"] == pytest.approx(delivered.ber.mean().item(), rel=1e-12)
     assert m["rate"] == pytest.approx(delivered.max_bit_rate.mean().item(), rel=1e-12)
-    for name in ("ber", "outage", "rate"):
+    for name in ("ber", "outage", "rate", "received_power_dbm"):
         assert m[f"{name}_lo"] <= m[name] <= m[f"{name}_hi"], name
+    power = (gain * link.received_power_per_gain).mean().item()
+    assert m["received_power_dbm"] == pytest.approx(10 * math.log10(power / 1e-3), abs=1e-12)
+    # the rate held 99 % of the time: 1 % of the 240 steps (2.4) sustain less, by the sorted list
+    ordered = delivered.max_bit_rate.flatten().sort().values
+    assert ordered[2] <= m["rate_held"] <= ordered[3] and m["rate_held"] < m["rate"]
 
 
 def test_ratio_to_upper_bound_is_a_ratio_of_means_not_a_mean_of_ratios():
@@ -60,7 +65,8 @@ def test_scenario_metrics_point_values_match_the_plain_definitions():
     reference = 1.0 + torch.rand(8, generator=generator, dtype=torch.float64)
     valid = torch.rand(8, 50, generator=generator) > 0.2
     m = scenario_metrics(gain, upper, reference, valid)
-    assert set(METRICS) | {f"{k}_lo" for k in METRICS} | {f"{k}_hi" for k in METRICS} == set(m)
+    named = (*METRICS, "received_power_dbm")
+    assert {f"{k}{suffix}" for k in named for suffix in ("", "_lo", "_hi")} | {"rate_held"} == set(m)
     assert m["mean_gain"] == pytest.approx(gain.mean().item(), rel=1e-12)
     assert m["ratio_to_ub"] == pytest.approx((gain.mean() / upper.mean()).item(), rel=1e-12)
     assert m["sigma2_diff"] == pytest.approx((upper - gain).var(unbiased=False).item(), rel=1e-9)

@@ -33,5 +33,7 @@ def run(cfg: DictConfig, output_dir: str | Path) -> None:
     with torch_threads(threads):
         result = evaluate(cfg, progress=log.info)
     written = write_outputs(result, out, cfg, physics=cfg.physics_figures)
-    log.info(f"Wrote {len(written)} files to {out}: metrics.json, metrics.csv, {len(written) - 3} figures, report.md")
+    figures = sum(path.suffix == ".png" for path in written)
+    tables = ", ".join(path.name for path in written if path.suffix == ".csv")
+    log.info(f"Wrote {len(written)} files to {out}: metrics.json, {tables}, {figures} figures, report.md")
     log.info(f"Report: {out / 'report.md'} ({result.seconds:.0f} s)")

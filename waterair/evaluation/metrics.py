@@ -8,10 +8,14 @@ strongly correlated. What the link delivers (BER, outage, rate) comes from the l
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 from waterair.physics.link import LinkBudget, link_performance
 
+HELD_SHARE = 0.99
+"""``rate_held`` is the bit rate the link sustains in this share of steps (its 1st percentile)."""
 FADE_FRACTION = 0.1
 """A step is a 10 dB fade when G < 0.1 G_0 (docs/model.md §8): a fade, not an outage, which the link budget defines."""
 
@@ -50,7 +54,8 @@ METRICS = (
 )
 """What :func:`scenario_metrics` reports, each with ``_lo`` / ``_hi`` bounds: ``ber`` the mean bit error
 rate, ``outage`` the share of steps with BER above the FEC limit, ``rate`` the mean bit rate at the FEC
-limit (bit/s), all of the link budget."""
+limit (bit/s), all of the link budget. Beside them, :func:`scenario_metrics` gives ``received_power_dbm`` (the mean
+received power, with bounds) and ``rate_held`` (the rate held in :data:`HELD_SHARE` of steps, no bounds)."""
 
 
 def scenario_metrics(
@@ -74,8 +79,13 @@ def scenario_metrics(
     Each gets ``<name>_lo`` / ``<name>_hi``: the percentile interval of ``resamples`` bootstrap
     draws of whole realisations (seeded, so a report is reproducible). Per-realisation sums are
     resampled, which is exact and costs O(resamples × R).
+    Also ``received_power_dbm`` (10 log10 of the mean P_r in mW, bounds from the mean gain's: P_r is linear
+    in G) and ``rate_held``, the bit rate sustained in :data:`HELD_SHARE` of all R·T steps (a percentile
+    of steps, given without bounds).
     """
-    stats = _realisation_sums(gain, upper, reference, valid, link or LinkBudget())
+    link = link or LinkBudget()
+    delivered = link_performance(gain.double(), link)
+    stats = _realisation_sums(gain, upper, reference, valid, delivered)
     point = _metrics_from_sums(stats.sum(0, keepdim=True), steps=gain.shape[-1] * gain.shape[0])
     generator = torch.Generator().manual_seed(seed)
     count = stats.shape[0]
@@ -88,16 +98,24 @@ def scenario_metrics(
         out[name] = point[0, index].item()
         out[f"{name}_lo"] = bounds[0, index].item() if count > 1 else float("nan")
         out[f"{name}_hi"] = bounds[1, index].item() if count > 1 else float("nan")
+    for suffix in ("", "_lo", "_hi"):
+        out[f"received_power_dbm{suffix}"] = power_dbm(out[f"mean_gain{suffix}"] * link.received_power_per_gain)
+    out["rate_held"] = torch.quantile(delivered.max_bit_rate.flatten(), 1.0 - HELD_SHARE).item()
     return out
 
 
-def _realisation_sums(gain, upper, reference, valid, link: LinkBudget) -> torch.Tensor:
+def power_dbm(watts: float) -> float:
+    """10 log10(P / 1 mW); −inf for no light, NaN stays NaN."""
+    return 10.0 * math.log10(watts * 1e3) if watts > 0 else (-math.inf if watts == 0 else math.nan)
+
+
+def _realisation_sums(gain, upper, reference, valid, delivered) -> torch.Tensor:
     """``[R, 10]`` per-realisation sums: G, G_UB, D = G_UB − G, D², fades, valid steps, G / G_0, BER,
     outages, bit rates."""
     gain, upper = gain.double().reshape(gain.shape[0], -1), upper.double().reshape(gain.shape[0], -1)
     reference = torch.as_tensor(reference, dtype=torch.float64).reshape(-1, 1).expand(gain.shape[0], 1)
     diff = upper - gain
-    delivered = link_performance(gain, link)
+    delivered = delivered.reshape(gain.shape)
     columns = (
         gain,
         upper,

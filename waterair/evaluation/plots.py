@@ -15,6 +15,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from waterair.evaluation.divergence import best_divergences  # noqa: E402
 from waterair.physics.link import link_performance  # noqa: E402
 
 STYLES = {
@@ -61,6 +62,11 @@ def evaluation_figures(result, out: Path) -> list[Path]:
         written.append(outage_vs_sweep(result, "S3", out / "outage_vs_wind.png"))
     if "S4" in names:
         written.append(gain_vs_sweep(result, "S4", out / "gain_vs_azimuth.png"))
+    if "S5" in names:
+        winds = dict.fromkeys(w for w, _, _ in _scenario(result, "S5").points)
+        written += [rate_vs_divergence(result, w, out / f"rate_vs_divergence_{w:g}ms.png") for w in winds]
+        if result.power_rows:
+            written.append(outage_vs_power(result, out / "outage_vs_power.png"))
     return written
 
 
@@ -185,6 +191,68 @@ def sigma_diff_vs_offset(result, path: Path) -> Path:
     ax.set_title(f"{scenario.title}: stability (lower is better, read with the gain)", fontsize=10)
     ax.grid(alpha=0.3, which="both")
     return _save_with_legend(fig, ax, path)
+
+
+def rate_vs_divergence(result, wind: float, path: Path) -> Path:
+    """S5 at one wind: mean bit rate (top) and the rate held 99 % of the time (bottom) against the divergence,
+    one column per offset, the best divergence of each policy (highest mean rate) ringed."""
+    scenario = _scenario(result, "S5")
+    offsets = [o for w, o, _ in scenario.points if w == wind]
+    x = [d * 1e3 for d in scenario.divergences]
+    best = {(b["offset_ratio"], b["policy"]): b for b in best_divergences(result.rows, scenario) if b["wind"] == wind}
+    fig, axes = plt.subplots(2, len(offsets), figsize=(5.2 * len(offsets), 7.5), sharex=True, squeeze=False)
+    for column, offset in enumerate(offsets):
+        for policy in result.policies:
+            rows = [result.row("S5", policy["label"], (wind, offset, 0.0), d) for d in scenario.divergences]
+            colour, marker, style, width = _style(result, policy)
+            kw = dict(color=colour, marker=marker, linestyle=style, linewidth=width)
+            axes[0, column].plot(x, [r["rate"] / 1e6 for r in rows], label=policy["label"], **kw)
+            axes[1, column].plot(x, [r["rate_held"] / 1e6 for r in rows], **kw)
+            top = best[(offset, policy["label"])]
+            axes[0, column].plot(top["divergence"] * 1e3, top["rate"] / 1e6, marker="o", markersize=13,
+                                 markerfacecolor="none", markeredgecolor=colour, markeredgewidth=1.6)  # fmt: skip
+        axes[0, column].set_title(f"offset {offset:.0%}", fontsize=10)
+        axes[1, column].set_xlabel("beam divergence ω_D (mrad)")
+    axes[0, 0].set_ylabel("mean bit rate at the FEC limit (Mbit/s)")
+    axes[1, 0].set_ylabel("bit rate held 99 % of the time (Mbit/s)")
+    for ax in axes.flat:
+        ax.set_xscale("log")
+        ax.set_xticks(x, [f"{v:g}" for v in x])
+        ax.minorticks_off()
+        ax.grid(alpha=0.3)
+    link = result.link_of("S5", scenario.divergences[0])
+    fig.suptitle(f"S5: link rate against beam divergence, U10 = {wind:g} m/s ({link.power_w * 1e3:g} mW; "
+                 f"rings: each policy's best divergence)\n{scenario.realisations} realisations × "
+                 f"{scenario.steps * result.dt:g} s")  # fmt: skip
+    return _save_with_legend(fig, axes[0, 0], path)
+
+
+def outage_vs_power(result, path: Path) -> Path:
+    """S5's power sweep: outage against transmit power, one panel per offset, with its interval."""
+    scenario = _scenario(result, "S5")
+    sweep = scenario.power_sweep
+    offsets = list(dict.fromkeys(r["offset_ratio"] for r in result.power_rows))
+    fig, axes = plt.subplots(1, len(offsets), figsize=(5.2 * len(offsets), 5.5), squeeze=False)
+    for column, offset in enumerate(offsets):
+        ax = axes[0, column]
+        for policy in result.policies:
+            rows = [r for r in result.power_rows if r["policy"] == policy["label"] and r["offset_ratio"] == offset]
+            x = [r["power_w"] * 1e3 for r in rows]
+            colour, marker, style, width = _style(result, policy)
+            ax.plot(x, [r["outage"] for r in rows], color=colour, marker=marker, linestyle=style, linewidth=width,
+                    label=policy["label"])  # fmt: skip
+            ax.fill_between(x, [r["outage_lo"] for r in rows], [r["outage_hi"] for r in rows], color=colour,
+                            alpha=0.12)  # fmt: skip
+        ax.set_xscale("log")
+        ax.set_yscale("symlog", linthresh=1e-3)
+        ax.set_ylim(0.0, 1.05)
+        ax.set_xlabel("transmit power (mW)")
+        ax.set_title(f"offset {offset:.0%}", fontsize=10)
+        ax.grid(alpha=0.3, which="both")
+    axes[0, 0].set_ylabel("outage probability P(BER > FEC limit)")
+    fig.suptitle(f"S5: outage against transmit power, U10 = {sweep.wind:g} m/s, ω_D = {sweep.divergence * 1e3:g} mrad\n"
+                 "(a floor that more power cannot lift is light that never arrives)")  # fmt: skip
+    return _save_with_legend(fig, axes[0, 0], path)
 
 
 def _scenario(result, name: str):

@@ -10,14 +10,16 @@ from omegaconf import DictConfig, OmegaConf
 
 from waterair.core.files import atomic_write_csv, atomic_write_text
 from waterair.evaluation import plots
+from waterair.evaluation.divergence import best_divergences, learned_gains
 from waterair.evaluation.figures import physics_figures
 from waterair.evaluation.metrics import METRICS
 from waterair.evaluation.runner import UPPER_BOUND, Evaluation
 from waterair.physics.link import fec_power
 
-SCHEMA_VERSION = 3
-"""3: the link budget's ``ber``, ``outage`` and ``rate`` per row, ``link`` at the top; 2's ``outage``
-(P(G < 0.1 G_0)) is ``fade_10db``."""
+SCHEMA_VERSION = 4
+"""4: ``divergence``, ``received_power_dbm`` and ``rate_held`` per row, S5 and its ``power_sweep``; 3: the link
+budget's ``ber``, ``outage`` and ``rate`` per row, ``link`` at the top; 2's ``outage`` (P(G < 0.1 G_0)) is
+``fade_10db``."""
 AXES = ("wind", "offset_ratio", "offset_azimuth_deg")
 """The three coordinates of a scenario point, in order."""
 ROW_KEYS = (
@@ -25,15 +27,19 @@ ROW_KEYS = (
     "wind",
     "offset_ratio",
     "offset_azimuth_deg",
+    "divergence",
     "policy",
     "kind",
-    *(f"{name}{suffix}" for name in METRICS for suffix in ("", "_lo", "_hi")),
+    *(f"{name}{suffix}" for name in (*METRICS, "received_power_dbm") for suffix in ("", "_lo", "_hi")),
+    "rate_held",
     "reference_gain",
     "realisations",
     "steps",
     "seed",
 )
 """Columns of metrics.csv and the keys of every ``rows`` entry of metrics.json (docs/results.md)."""
+POWER_KEYS = ("policy", "offset_ratio", "power_w", "outage", "outage_lo", "outage_hi", "no_light")
+"""Columns of outage_vs_power.csv and of metrics.json's ``power_sweep`` (S5)."""
 
 
 def write_outputs(result: Evaluation, out: Path, cfg: DictConfig, physics: bool = True) -> list[Path]:
@@ -41,6 +47,8 @@ def write_outputs(result: Evaluation, out: Path, cfg: DictConfig, physics: bool 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     written = [_write_json(result, out / "metrics.json", cfg), _write_csv(result, out / "metrics.csv")]
+    if result.power_rows:
+        written.append(atomic_write_csv(out / "outage_vs_power.csv", POWER_KEYS, result.power_rows))
     figures = plots.evaluation_figures(result, out)
     if physics:
         figures += physics_figures(out, result.env.sea)
@@ -67,12 +75,28 @@ def _write_json(result: Evaluation, path: Path, cfg: DictConfig) -> Path:
                 "steps": s.steps,
                 "seed": s.seed,
                 "dt": result.dt,
+                **_study(result, s),
             }
             for s in result.scenarios
         ],
         "rows": [{key: row[key] for key in ROW_KEYS} for row in result.rows],
+        "power_sweep": result.power_rows,
     }
     return atomic_write_text(path, json.dumps(data, indent=2, allow_nan=True))
+
+
+def _study(result: Evaluation, scenario) -> dict:
+    """S5's own keys in metrics.json: divergences (rad), the link keys it replaces and its power sweep."""
+    if not scenario.divergences:
+        return {}
+    sweep = scenario.power_sweep
+    return {
+        "divergences": list(scenario.divergences),
+        "link": dict(scenario.link),
+        "power_sweep": None if sweep is None else {"wind": sweep.wind, "divergence": sweep.divergence,
+                                                   "powers_w": list(sweep.powers)},
+        "best_divergence": best_divergences(result.rows, scenario),
+    }  # fmt: skip
 
 
 def _link_summary(result: Evaluation) -> dict:
@@ -109,7 +133,7 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
         "realisations. σ²_diff alone rewards a policy that receives nothing (then it is var(G_UB)): read it "
         "next to the ratio.",
         "",
-        f"The link (docs/model.md §9): {_link_line(result)}. Outage is the share of steps with a BER above "
+        f"The link (docs/model.md §9): {_link_line(result.link)}. Outage is the share of steps with a BER above "
         f"the FEC limit {result.link.fec_limit:g}; BER is the mean over steps; rate is the mean bit rate the "
         "link sustains at the FEC limit.",
         "",
@@ -122,7 +146,9 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
             f"seed {scenario.seed}; every policy on the same seas.",
             "",
         ]
-        if scenario.axis is None:
+        if scenario.divergences:
+            lines += _divergence_lines(result, scenario)
+        elif scenario.axis is None:
             point = scenario.points[0]
             lines += [
                 "| policy | mean G (m⁻²) | ratio to UB | σ²_diff (m⁻⁴) | outage | mean BER | rate (Mbit/s) "
@@ -159,10 +185,71 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
     return atomic_write_text(path, "\n".join(lines))
 
 
-def _link_line(result: Evaluation) -> str:
-    """E.g. ``50 mW at 520 nm, APD (M = 40), background 0.005 W/(m² sr nm), 10 Mbit/s OOK``."""
-    link = result.link
+def _divergence_lines(result: Evaluation, scenario) -> list[str]:
+    """S5: rate, held rate and outage per divergence at every point; each policy's best divergence; what the
+    learned policies gain there; outage against transmit power."""
+    labels = [p["label"] for p in result.policies]
+    link = result.link_of(scenario.name, scenario.divergences[0])
+    lines = [
+        f"The study's link: {_link_line(link)} (at ω_D = {scenario.divergences[0] * 1e3:g} mrad; a narrower beam "
+        "puts more power on the receiver per unit of gain, J_0/P_t = 2/(π ω_D′²)). Each cell: mean bit rate at "
+        "the FEC limit (Mbit/s), the rate held in 99 % of steps, and the outage.",
+        "",
+    ]
+    for wind, offset, azimuth in scenario.points:
+        lines += [f"**U10 = {wind:g} m/s, offset {offset:.0%}**", ""]
+        lines += ["| ω_D (mrad) | " + " | ".join(labels) + " |", "|---" * (len(labels) + 1) + "|"]
+        for divergence in scenario.divergences:
+            rows = [result.row(scenario.name, label, (wind, offset, azimuth), divergence) for label in labels]
+            cells = [f"{r['rate'] / 1e6:.3g}<br>{r['rate_held'] / 1e6:.3g}<br>{r['outage']:.1%}" for r in rows]
+            lines.append(f"| {divergence * 1e3:g} | " + " | ".join(cells) + " |")
+        lines.append("")
+    best = best_divergences(result.rows, scenario)
+    lines += [
+        "### Each policy's best divergence",
+        "",
+        "The divergence with the highest mean rate (ties: the widest).",
+        "",
+    ]
+    lines += ["| U10 (m/s) | offset | policy | ω_D (mrad) | rate (Mbit/s) | held 99 % | P_r (dBm) | outage |",
+              "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for b in best:
+        lines.append(
+            f"| {b['wind']:g} | {b['offset_ratio']:.0%} | {b['policy']} | {b['divergence'] * 1e3:g} "
+            f"| {b['rate'] / 1e6:.3g} | {b['rate_held'] / 1e6:.3g} | {b['received_power_dbm']:.1f} "
+            f"| {b['outage']:.2%} |"
+        )
+    gains = learned_gains(best, result.policies)
+    if gains:
+        lines += ["", "### What the learned policies gain, each at its best divergence", ""]
+        lines += ["| U10 (m/s) | offset | learned | over | P_r (dB) | rate (Mbit/s) | held 99 % (Mbit/s) |",
+                  "|---|---|---|---|---|---|---|"]  # fmt: skip
+        for g in gains:
+            lines.append(
+                f"| {g['wind']:g} | {g['offset_ratio']:.0%} | {g['policy']} | {g['baseline']} | {g['db']:+.2f} "
+                f"| {g['rate'] / 1e6:+.3g} | {g['rate_held'] / 1e6:+.3g} |"
+            )
+    sweep = scenario.power_sweep
+    if sweep is not None and result.power_rows:
+        where = f"U10 = {sweep.wind:g} m/s, ω_D = {sweep.divergence * 1e3:g} mrad"
+        lines += ["", f"### Outage against transmit power, {where}", "",
+                  "The share of steps with no light at all is the floor that no power lifts.", ""]  # fmt: skip
+        powers = list(sweep.powers)
+        lines += ["| policy | offset | " + " | ".join(f"{p * 1e3:g} mW" for p in powers) + " | no light |",
+                  "|---" * (len(powers) + 3) + "|"]  # fmt: skip
+        keyed = {(r["policy"], r["offset_ratio"], r["power_w"]): r for r in result.power_rows}
+        for label in labels:
+            for offset in dict.fromkeys(r["offset_ratio"] for r in result.power_rows):
+                cells = [f"{keyed[(label, offset, p)]['outage']:.2%}" for p in powers]
+                floor = keyed[(label, offset, powers[0])]["no_light"]
+                lines.append(f"| {label} | {offset:.0%} | " + " | ".join(cells) + f" | {floor:.2%} |")
+    return [*lines, ""]
+
+
+def _link_line(link) -> str:
+    """E.g. ``50 mW at 520 nm, APD (M = 40) with a 40 MHz front end, background 0.005 W/(m² sr nm), 10 Mbit/s OOK``."""
     receiver = f"APD (M = {link.receiver.gain:g})" if link.receiver.gain > 1 else "PIN photodiode"
+    receiver += f" with a {link.receiver.cutoff_hz / 1e6:g} MHz front end"
     return (
         f"{link.power_w * 1e3:g} mW at {link.optics.wavelength * 1e9:g} nm, {receiver}, background "
         f"{link.background_radiance:g} W/(m² sr nm), {link.bit_rate / 1e6:g} Mbit/s OOK; in outage below "

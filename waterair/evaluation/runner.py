@@ -11,6 +11,7 @@ closing evaluation uses it.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -18,27 +19,22 @@ from pathlib import Path
 
 import torch
 from omegaconf import DictConfig, OmegaConf
-from tensordict.nn import TensorDictModuleBase
-from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from waterair.core.compiling import CHOICES as COMPILE_CHOICES
 from waterair.core.compiling import compiling_pays
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
-from waterair.envs.baselines import BASELINES
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import CONTROLLERS
-from waterair.envs.env import WaterAirEnv
 from waterair.envs.link import link_budget
+from waterair.evaluation.divergence import at_divergence, outage_against_power, scenario_link
 from waterair.evaluation.metrics import scenario_metrics
 from waterair.evaluation.policies import INTERFACE_KEYS, LearnedPolicy, as_list, checkpoint_sources, load_policy
+from waterair.evaluation.rollouts import REFERENCES, rollout_policies
 from waterair.evaluation.scenarios import Scenario, scenarios_from_config
 from waterair.physics.link import LinkBudget
 
 UPPER_BOUND = "upper_bound"
-REFERENCES = {**BASELINES, **CONTROLLERS}
-"""Everything ``baselines`` may name: the model-based baselines and the classical controllers."""
-TRACE_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid")
 SENSING = ("trained", "scenario")
 """``sensing``: each learned policy with the sensor it was trained with, or every policy with the scenario's."""
 
@@ -68,6 +64,9 @@ class Evaluation:
     """scenario → policy → ``gain`` / ``gain_upper_bound`` traces ``[R, P, T]``."""
     env: EnvConfig = field(default_factory=EnvConfig)  # the scenario physics (sea, geometry, dt, device)
     link: LinkBudget = field(default_factory=LinkBudget)  # what turns each step's gain into BER, outage, rate
+    links: dict[tuple[str, float], LinkBudget] = field(default_factory=dict)
+    """(scenario, divergence) → its link budget where it is not ``link`` (S5)."""
+    power_rows: list[dict] = field(default_factory=list)  # S5's outage against transmit power
     seconds: float = 0.0
 
     @property
@@ -78,12 +77,17 @@ class Evaluation:
     def device(self) -> str:
         return self.env.device
 
-    def row(self, scenario: str, policy: str, point: tuple[float, float, float]) -> dict:
-        """The row of ``policy`` at ``point`` (wind, offset ratio, azimuth) of ``scenario``."""
+    def row(self, scenario: str, policy: str, point: tuple[float, float, float], divergence: float | None = None):
+        """The row of ``policy`` at ``point`` (wind, offset ratio, azimuth) of ``scenario`` (at ``divergence``, rad)."""
         for row in self.rows:
             if row["scenario"] == scenario and row["policy"] == policy and _point(row) == tuple(point):
-                return row
-        raise KeyError((scenario, policy, point))
+                if divergence is None or row["divergence"] == divergence:
+                    return row
+        raise KeyError((scenario, policy, point, divergence))
+
+    def link_of(self, scenario: str, divergence: float | None = None) -> LinkBudget:
+        """The link budget ``scenario``'s rows were measured with (at ``divergence``)."""
+        return self.links.get((scenario, divergence or self.env.optics.divergence), self.link)
 
 
 def compare_policies(
@@ -120,6 +124,7 @@ class EvaluationPlan:
     learned: list[tuple]  # (policy, its env config, its actor on the device)
     batch_policies: bool
     groups: list[tuple] = field(default_factory=list)  # (env config, [(label, policy or baseline name)])
+    links: dict[tuple[str, float], LinkBudget] = field(default_factory=dict)  # S5's, per divergence
 
 
 def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) -> EvaluationPlan:
@@ -136,7 +141,9 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
     base = EnvConfig.from_mapping({**values, "compile_kernel": compile_kernel == "true"})
     device = resolve_device(base.device, "env.device")
     base = base.replace(device=str(device))  # reports name the device that ran, not "auto"
-    link = link_budget(OmegaConf.to_container(cfg.link, resolve=True), base)
+    link_values = OmegaConf.to_container(cfg.link, resolve=True)
+    link = link_budget(link_values, base)
+    links = {(s.name, d): scenario_link(link_values, s, base, d) for s in scenarios for d in s.divergences}
     scenario_env = {key: getattr(base, key) for key in INTERFACE_KEYS}
     baselines = as_list(cfg.baselines)
     unknown = [name for name in baselines if name not in REFERENCES]
@@ -150,8 +157,9 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
         policies = [load_policy(p, labels[i] if labels else None) for i, p in enumerate(sources)]
     _unique_labels(policies)
     if compile_kernel == "auto":  # every policy, baseline and the bound roll out every scenario's points
-        frames = (len(policies) + len(baselines) + 1) * sum(len(s.points) * s.realisations * s.steps for s in scenarios)
-        base = base.replace(compile_kernel=compiling_pays(frames)[0])
+        per_policy = sum(len(s.points) * s.realisations * s.steps * max(1, len(s.divergences)) for s in scenarios)
+        frames = (len(policies) + len(baselines) + 1) * per_policy
+        base = base.replace(compile_kernel=compiling_pays(frames, channel=base.channel)[0])
     sensing = cfg.get("sensing", "trained")
     check_choice("sensing", sensing, SENSING)
     learned = []
@@ -168,7 +176,9 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
                 )
     together = bool(cfg.get("batch_policies", True))
     groups = _policy_groups(base, baselines, learned, together)
-    return EvaluationPlan(scenarios, bootstrap, base, link, baselines, list(policies), learned, together, groups)
+    plan = EvaluationPlan(scenarios, bootstrap, base, link, baselines, list(policies), learned, together, groups)
+    plan.links = links
+    return plan
 
 
 def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, progress=print) -> Evaluation:
@@ -191,33 +201,36 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
         ],
         env=plan.env,
         link=plan.link,
+        links=plan.links,
     )
     # Scenarios with the same realisations, steps and seed run as one batch over the union of their
     # points; within it, every group of policies sharing an interface runs as replicas of one env.
-    groups = plan.groups
     for batch in _batches(plan.scenarios):
         points = list(dict.fromkeys(p for s in batch for p in s.points))
         first = batch[0]
-        runs = {}
-        for env_config, members in groups:
-            start = time.perf_counter()
-            runs.update(rollout_policies(env_config, members, points, first.realisations, first.steps, first.seed))
-            names = ", ".join(label for label, _ in members)
-            scenario_names = "+".join(s.name for s in batch)
-            progress(f"{scenario_names} ({len(points)} points × {first.realisations} seas × {first.steps} steps): "
-                     f"{names} in {time.perf_counter() - start:.0f} s")  # fmt: skip
-        for scenario in batch:
-            index = torch.tensor([points.index(p) for p in scenario.points])
-            selected = {label: {k: v[:, index] for k, v in t.items()} for label, t in runs.items()}
-            _collect(result, scenario, selected, plan.bootstrap)
+        for divergence in first.divergences or (None,):  # S5: every point at each divergence
+            runs = {}
+            for env_config, members in plan.groups:
+                start = time.perf_counter()
+                env_config = at_divergence(env_config, divergence)
+                runs.update(rollout_policies(env_config, members, points, first.realisations, first.steps, first.seed))
+                names = ", ".join(label for label, _ in members)
+                scenario_names = "+".join(s.name for s in batch)
+                at = f" at {divergence * 1e3:g} mrad" if divergence is not None else ""
+                progress(f"{scenario_names}{at} ({len(points)} points × {first.realisations} seas × {first.steps} "
+                         f"steps): {names} in {time.perf_counter() - start:.0f} s")  # fmt: skip
+            for scenario in batch:
+                index = torch.tensor([points.index(p) for p in scenario.points])
+                selected = {label: {k: v[:, index] for k, v in t.items()} for label, t in runs.items()}
+                _collect(result, scenario, selected, plan.bootstrap, divergence)
     result.seconds = time.perf_counter() - clock
     return result
 
 
 def _batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
-    batches: dict[tuple[int, int, int], list[Scenario]] = {}
-    for scenario in scenarios:
-        batches.setdefault((scenario.realisations, scenario.steps, scenario.seed), []).append(scenario)
+    batches: dict[tuple, list[Scenario]] = {}
+    for s in scenarios:
+        batches.setdefault((s.realisations, s.steps, s.seed, s.divergences), []).append(s)
     return list(batches.values())
 
 
@@ -264,68 +277,18 @@ def sensing_label(sensing: Mapping) -> str:
     return ", ".join(parts) or "ideal"
 
 
-class PolicySplit(TensorDictModuleBase):
-    """K policies side by side: policy k acts on rows ``[k·size, (k+1)·size)`` of the batch."""
+def _collect(
+    result: Evaluation, scenario: Scenario, runs: dict[str, dict], bootstrap: Bootstrap, divergence: float | None
+) -> None:
+    """Metrics rows for every point and policy (the upper bound first) at ``divergence``, and the traces.
 
-    out_keys = ["action"]
-
-    def __init__(self, policies: Sequence[TensorDictModuleBase], size: int):
-        super().__init__()
-        self.policies = torch.nn.ModuleList(policies)
-        self.size = size
-        self.in_keys = list(dict.fromkeys(key for p in policies for key in p.in_keys))
-
-    def forward(self, tensordict):
-        actions = [
-            policy(tensordict[k * self.size : (k + 1) * self.size].select(*policy.in_keys))["action"]
-            for k, policy in enumerate(self.policies)
-        ]
-        tensordict.set("action", torch.cat(actions, dim=0))
-        return tensordict
-
-
-def rollout_policies(env_config: EnvConfig, members, points, realisations: int, steps: int, seed: int) -> dict:
-    """Traces ``[R, P, T]`` (CPU) per member ``(label, policy or baseline name)``, all on the same seas.
-
-    The members run as replicas of one environment seeded with ``seed``, greedily (no exploration
-    noise), over ``points`` (wind m/s, offset ratio, azimuth deg) × ``realisations`` links for
-    ``steps`` steps.
+    S5 keeps the traces at its power sweep's divergence only, and measures that sweep from them.
     """
-    links = len(points) * realisations
-    winds, offsets, azimuths = zip(*points, strict=True)
-    env = WaterAirEnv(
-        env_config.replace(
-            num_envs=links * len(members),
-            replicas=len(members),
-            wind_values=winds,
-            offset_values=offsets,
-            offset_azimuth_values=azimuths,
-            wind_direction_values=None,  # points fix the drone; the wind blows from env.sea.wind_direction_deg
-            wind_range=None,
-            offset_range=None,
-            offset_azimuth_range=None,
-            wind_direction_range=None,
-        )
-    )
-    policies = [REFERENCES[policy](env) if isinstance(policy, str) else policy for _, policy in members]
-    env.set_seed(seed)
-    with set_exploration_type(ExplorationType.DETERMINISTIC), torch.no_grad():
-        rollout = env.rollout(steps, PolicySplit(policies, links), break_when_any_done=False)
-    # row = k·links + r·P + p: policy k, realisation r, point p
-    shape = (len(members), realisations, len(points), steps)
-    traces = {key: rollout["next", key].cpu().reshape(shape) for key in TRACE_KEYS}
-    reference = env.reference_gain.cpu().reshape(shape[:3])
-    return {
-        label: {**{key: value[k] for key, value in traces.items()}, "reference_gain": reference[k]}
-        for k, (label, _) in enumerate(members)
-    }
-
-
-def _collect(result: Evaluation, scenario: Scenario, runs: dict[str, dict], bootstrap: Bootstrap) -> None:
-    """Metrics rows for every point and policy (the upper bound first), and the traces."""
     first = next(iter(runs.values()))
     runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
     kinds = {p["label"]: p["kind"] for p in result.policies}
+    divergence = result.env.optics.divergence if divergence is None else divergence
+    link = result.link_of(scenario.name, divergence)
     for index, (wind, offset, azimuth) in enumerate(scenario.points):
         for label in kinds:
             t = runs[label]
@@ -335,18 +298,24 @@ def _collect(result: Evaluation, scenario: Scenario, runs: dict[str, dict], boot
                     "wind": wind,
                     "offset_ratio": offset,
                     "offset_azimuth_deg": azimuth,
+                    "divergence": divergence,
                     "policy": label,
                     "kind": kinds[label],
-                    **_point_metrics(t, index, bootstrap, result.link),
+                    **_point_metrics(t, index, bootstrap, link),
                     "reference_gain": t["reference_gain"][:, index].double().mean().item(),
                     "realisations": scenario.realisations,
                     "steps": scenario.steps,
                     "seed": scenario.seed,
                 }
             )
+    sweep = scenario.power_sweep
+    if scenario.divergences and (sweep is None or not math.isclose(sweep.divergence, divergence)):
+        return
     result.traces[scenario.name] = {
         label: {"gain": runs[label]["gain"], "gain_upper_bound": runs[label]["gain_upper_bound"]} for label in kinds
     }
+    if sweep is not None:
+        result.power_rows += outage_against_power(scenario, {label: runs[label] for label in kinds}, link, bootstrap)
 
 
 def _point_metrics(traces: dict[str, torch.Tensor], index: int, bootstrap: Bootstrap, link: LinkBudget) -> dict:

@@ -1,0 +1,75 @@
+"""Greedy rollouts of several policies side by side on the same seas: what every evaluation measures."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from tensordict.nn import TensorDictModuleBase
+from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+from waterair.envs.baselines import BASELINES
+from waterair.envs.config import EnvConfig
+from waterair.envs.controllers import CONTROLLERS
+from waterair.envs.env import WaterAirEnv
+
+REFERENCES = {**BASELINES, **CONTROLLERS}
+"""Everything ``baselines`` may name: the model-based baselines and the classical controllers."""
+TRACE_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid")
+
+
+class PolicySplit(TensorDictModuleBase):
+    """K policies side by side: policy k acts on rows ``[k·size, (k+1)·size)`` of the batch."""
+
+    out_keys = ["action"]
+
+    def __init__(self, policies: Sequence[TensorDictModuleBase], size: int):
+        super().__init__()
+        self.policies = torch.nn.ModuleList(policies)
+        self.size = size
+        self.in_keys = list(dict.fromkeys(key for p in policies for key in p.in_keys))
+
+    def forward(self, tensordict):
+        actions = [
+            policy(tensordict[k * self.size : (k + 1) * self.size].select(*policy.in_keys))["action"]
+            for k, policy in enumerate(self.policies)
+        ]
+        tensordict.set("action", torch.cat(actions, dim=0))
+        return tensordict
+
+
+def rollout_policies(env_config: EnvConfig, members, points, realisations: int, steps: int, seed: int) -> dict:
+    """Traces ``[R, P, T]`` (CPU) per member ``(label, policy or baseline name)``, all on the same seas.
+
+    The members run as replicas of one environment seeded with ``seed``, greedily (no exploration
+    noise), over ``points`` (wind m/s, offset ratio, azimuth deg) × ``realisations`` links for
+    ``steps`` steps.
+    """
+    links = len(points) * realisations
+    winds, offsets, azimuths = zip(*points, strict=True)
+    env = WaterAirEnv(
+        env_config.replace(
+            num_envs=links * len(members),
+            replicas=len(members),
+            wind_values=winds,
+            offset_values=offsets,
+            offset_azimuth_values=azimuths,
+            wind_direction_values=None,  # points fix the drone; the wind blows from env.sea.wind_direction_deg
+            wind_range=None,
+            offset_range=None,
+            offset_azimuth_range=None,
+            wind_direction_range=None,
+        )
+    )
+    policies = [REFERENCES[policy](env) if isinstance(policy, str) else policy for _, policy in members]
+    env.set_seed(seed)
+    with set_exploration_type(ExplorationType.DETERMINISTIC), torch.no_grad():
+        rollout = env.rollout(steps, PolicySplit(policies, links), break_when_any_done=False)
+    # row = k·links + r·P + p: policy k, realisation r, point p
+    shape = (len(members), realisations, len(points), steps)
+    traces = {key: rollout["next", key].cpu().reshape(shape) for key in TRACE_KEYS}
+    reference = env.reference_gain.cpu().reshape(shape[:3])
+    return {
+        label: {**{key: value[k] for key, value in traces.items()}, "reference_gain": reference[k]}
+        for k, (label, _) in enumerate(members)
+    }
