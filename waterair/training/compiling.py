@@ -7,10 +7,10 @@ from __future__ import annotations
 
 from omegaconf import DictConfig, OmegaConf
 
-from waterair.core.compiling import CHOICES, MIN_FRAMES, cache_state, compiling_pays
+from waterair.core.compiling import CHOICES, MIN_FRAMES, MIN_FRAMES_FULL, cache_state, compiling_pays
 from waterair.core.validation import check_choice
 
-__all__ = ["CHOICES", "MIN_FRAMES", "cache_state", "compile_plan"]
+__all__ = ["CHOICES", "MIN_FRAMES", "MIN_FRAMES_FULL", "cache_state", "compile_plan"]
 
 
 def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -> tuple[DictConfig, str]:
@@ -25,7 +25,7 @@ def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -
     decided = {key: str(value).lower() == "true" for key, value in settings.items()}
     reason = "as configured"
     if automatic:
-        pays, reason = compiling_pays(frames_to_go, cache)
+        pays, reason = compiling_pays(frames_to_go, cache, str(cfg.env.channel))
         decided.update({key: pays for key in automatic})
     plan = OmegaConf.merge(
         cfg, {"env": {"compile_kernel": decided["env.compile_kernel"]}, "compile_update": decided["compile_update"]}
