@@ -22,6 +22,11 @@ from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path
 from waterair.physics.paths.fixed import finish_unconverged
 from waterair.physics.surface import WaveSurface
 
+RECOMPILE_LIMIT = 128
+"""Graphs torch may compile per kernel function in one process. Every environment configuration is a graph of
+its own (the guards are on it), and torch's default limit of 8 is reached by one evaluation (a group of
+policies per sensing, each scenario batch and, in S5, each divergence): past it torch runs the step eagerly,
+15× slower on the full channel, after a wall of warnings."""
 FINISH_ITERATIONS = 8
 """Masked Newton iterations of the links a step's fixed-iteration solve leaves unconverged."""
 DENSE_FINISH_BATCH = 64
@@ -31,6 +36,9 @@ DENSE_FINISH_BATCH = 64
 @functools.cache
 def compiled(name: str):
     """``torch.compile`` of the kernel function ``name`` (``step``, ``finish`` or ``conclude``)."""
+    dynamo = torch._dynamo.config
+    dynamo.recompile_limit = max(dynamo.recompile_limit, RECOMPILE_LIMIT)
+    dynamo.accumulated_recompile_limit = max(dynamo.accumulated_recompile_limit, 4 * RECOMPILE_LIMIT)
     return torch.compile(getattr(kernel, name))
 
 
