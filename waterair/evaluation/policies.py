@@ -31,18 +31,16 @@ INTERFACE_KEYS = (
 )
 """Environment keys a learned policy keeps from its own training config; the scenario sets the rest."""
 TRAINED_LATTICE = ("env.lattice_nodes=7", "env.lattice_span=4.0")
-"""The full channel's lattice when the shipped policies were trained (unused by their one-path channel, but in
-their configs)."""
-PAPER_PHYSICS = ("env/spectrum=jonswap", "env.channel=single_path", *TRAINED_LATTICE)
-"""The physics the shipped policies were trained on, the defaults of their releases: the paper's sea and channel."""
+"""The full channel's lattice when ``paper`` was trained (unused by its one-path channel, but in its config)."""
 SHIPPED = {
-    "default": PAPER_PHYSICS,
-    "intensity": ("env/observation=intensity", *PAPER_PHYSICS),
+    "default": (),
+    "intensity": ("env/observation=intensity",),
     "paper": ("+experiment=paper", *TRAINED_LATTICE),
 }
 """The shipped policies in :data:`ASSETS` (``NAME.pt``, ``NAME.yaml``, ``NAME_metrics.json``), which
 ``python evaluate.py`` evaluates when given no run or checkpoint, and the ``train.py`` overrides
-each was trained with (on defaults otherwise; docs/results.md)."""
+each was trained with (on defaults otherwise: ``default`` and ``intensity`` on the measured-slope sea and
+the full channel, ``paper`` on the paper's physics; docs/results.md)."""
 
 
 def shipped_policy(name: str) -> Path:
