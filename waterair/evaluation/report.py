@@ -205,30 +205,27 @@ def _divergence_lines(result: Evaluation, scenario) -> list[str]:
             lines.append(f"| {divergence * 1e3:g} | " + " | ".join(cells) + " |")
         lines.append("")
     best = best_divergences(result.rows, scenario)
-    lines += [
-        "### Each policy's best divergence",
-        "",
-        "The divergence with the highest mean rate (ties: the widest).",
-        "",
-    ]
-    lines += ["| U10 (m/s) | offset | policy | ω_D (mrad) | rate (Mbit/s) | held 99 % | P_r (dBm) | outage |",
-              "|---|---|---|---|---|---|---|---|"]  # fmt: skip
-    for b in best:
-        lines.append(
-            f"| {b['wind']:g} | {b['offset_ratio']:.0%} | {b['policy']} | {b['divergence'] * 1e3:g} "
-            f"| {b['rate'] / 1e6:.3g} | {b['rate_held'] / 1e6:.3g} | {b['received_power_dbm']:.1f} "
-            f"| {b['outage']:.2%} |"
-        )
+    lines += ["### Each policy's best divergence", "", "Where its mean rate is highest (ties: the widest beam).", ""]
+    lines += _table(
+        ("U10 (m/s)", "offset", "policy", "ω_D (mrad)", "rate (Mbit/s)", "held 99 %", "P_r (dBm)", "outage"),
+        [
+            (f"{b['wind']:g}", f"{b['offset_ratio']:.0%}", b["policy"], f"{b['divergence'] * 1e3:g}",
+             f"{b['rate'] / 1e6:.3g}", f"{b['rate_held'] / 1e6:.3g}", f"{b['received_power_dbm']:.1f}",
+             f"{b['outage']:.2%}")
+            for b in best
+        ],
+    )  # fmt: skip
     gains = learned_gains(best, result.policies)
     if gains:
         lines += ["", "### What the learned policies gain, each at its best divergence", ""]
-        lines += ["| U10 (m/s) | offset | learned | over | P_r (dB) | rate (Mbit/s) | held 99 % (Mbit/s) |",
-                  "|---|---|---|---|---|---|---|"]  # fmt: skip
-        for g in gains:
-            lines.append(
-                f"| {g['wind']:g} | {g['offset_ratio']:.0%} | {g['policy']} | {g['baseline']} | {g['db']:+.2f} "
-                f"| {g['rate'] / 1e6:+.3g} | {g['rate_held'] / 1e6:+.3g} |"
-            )
+        lines += _table(
+            ("U10 (m/s)", "offset", "learned", "over", "P_r (dB)", "rate (Mbit/s)", "held 99 % (Mbit/s)"),
+            [
+                (f"{g['wind']:g}", f"{g['offset_ratio']:.0%}", g["policy"], g["baseline"], f"{g['db']:+.2f}",
+                 f"{g['rate'] / 1e6:+.3g}", f"{g['rate_held'] / 1e6:+.3g}")
+                for g in gains
+            ],
+        )  # fmt: skip
     sweep = scenario.power_sweep
     if sweep is not None and result.power_rows:
         where = f"U10 = {sweep.wind:g} m/s, ω_D = {sweep.divergence * 1e3:g} mrad"
@@ -244,6 +241,13 @@ def _divergence_lines(result: Evaluation, scenario) -> list[str]:
                 floor = keyed[(label, offset, powers[0])]["no_light"]
                 lines.append(f"| {label} | {offset:.0%} | " + " | ".join(cells) + f" | {floor:.2%} |")
     return [*lines, ""]
+
+
+def _table(header, rows) -> list[str]:
+    """A markdown table: the ``header`` cells, a rule, then one line per row of cells."""
+    return [" | ".join(("", *header, "")).strip(), "|---" * len(header) + "|"] + [
+        " | ".join(("", *row, "")).strip() for row in rows
+    ]
 
 
 def _link_line(link) -> str:
