@@ -176,9 +176,7 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
                 )
     together = bool(cfg.get("batch_policies", True))
     groups = _policy_groups(base, baselines, learned, together)
-    plan = EvaluationPlan(scenarios, bootstrap, base, link, baselines, list(policies), learned, together, groups)
-    plan.links = links
-    return plan
+    return EvaluationPlan(scenarios, bootstrap, base, link, baselines, list(policies), learned, together, groups, links)
 
 
 def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, progress=print) -> Evaluation:
