@@ -1,8 +1,8 @@
 """S5, link rate against beam divergence (docs/evaluation.md, "S5"): each divergence's environment and link
 budget, each policy's best divergence and what a learned policy gains there, and outage against transmit power.
 
-A beam ω_D times narrower puts 1/ω_D'² more intensity on its axis (J_0/P_t = 2/(π ω_D'²), docs/model.md §9),
-which reaches the receiver only if the pointing holds it there; the channel gain G is normalised by J_0, so
+A narrower beam puts more intensity on its axis (J_0/P_t = 2/(π ω_D'²), docs/model.md §9), which reaches
+the receiver only if the pointing holds it there; the channel gain G is normalised by J_0, so
 the received power P_r = T_f P_t (J_0/P_t) G A_det is what the divergences are compared on.
 """
 
@@ -34,7 +34,7 @@ def scenario_link(values: Mapping, scenario: Scenario, env: EnvConfig, divergenc
     keys replaced, on ``env``'s optics at that divergence. An error in a key the scenario sets names
     ``scenarios.<name>.link.<key>``, any other ``link.<key>``."""
     own = dict(scenario.link)
-    optics = at_divergence(env, divergence).optics
+    optics = env.optics if divergence is None else dataclasses.replace(env.optics, divergence=divergence)
     try:
         return LinkBudget.from_mapping({**values, **own}, optics=optics)
     except ValueError as error:
