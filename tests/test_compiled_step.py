@@ -104,3 +104,28 @@ def test_fixed_iteration_solver_without_finishing_flags_unconverged_links_invali
     assert path.iterations.max().item() == 1 and finished.iterations.max().item() > 1
     for value in (path.point, path.departure, path.theta1, path.d_air):
         assert torch.isfinite(value).all()
+
+
+def test_an_evaluation_compiles_one_step_graph_for_every_batch_size(monkeypatch):
+    """Inside ``varying_environments`` (what an evaluation runs in) environments of one configuration but
+    different batch sizes share one step graph: nothing in the step fixes the batch size (a tensorclass
+    sliced as a whole did), and tensordict's answers remembered during a rollout do not throw the first
+    graph away. Traced only (dynamo's counting backend), on the defaults' channel over a coarse sea."""
+    from torch._dynamo.testing import CompileCounter
+
+    from waterair.envs import kernel, stepper
+
+    counter, traced, settings = CompileCounter(), {}, stepper.compiled
+
+    def counted(name):  # stepper.compiled, with the counting backend instead of inductor
+        settings(name)  # its settings (recompile limit, tensordict's answers)
+        return traced.setdefault(name, torch.compile(getattr(kernel, name), backend=counter))
+
+    monkeypatch.setattr(stepper, "compiled", counted)
+    torch._dynamo.reset()
+    with stepper.varying_environments("waterair-tests"):
+        for batch in (2, 5, 3):
+            config = preset_config("quadrant", "realistic", batch, channel="full", compile_kernel=True, **OCEAN)
+            env = WaterAirEnv(config.replace(**CONVERGING))
+            rollout(env, torch.zeros(3, batch, 4))
+    assert counter.frame_count == 1

@@ -103,6 +103,13 @@ def main(argv: list[str] | None = None) -> int:
         "--threads", default="auto", type=_threads, help="torch threads of every run: auto (train.py's rule) or N"
     )
     training.add_argument("--no-load", action="store_false", dest="load", help="skip the runs beside a busy process")
+    training.add_argument(
+        "--override",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a train.py override for every run, SB3's included (repeatable), e.g. env.channel=single_path",
+    )
     quality = sub.add_parser("quality", help="wall time to a greedy 0.95 of UB: ours vs Stable-Baselines3 DDPG")
     quality.add_argument("--budgets", type=int, nargs="+", default=[1600, 8000, 40000], help="our runs' frames")
     quality.add_argument(
@@ -150,7 +157,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.suite == "training":
         record = {"machine": machine(torch.device("cpu"), torch.float32)}
         record.update(
-            bench_training(args.updates, args.short_frames, args.long_frames, args.sb3_frames, args.threads, args.load)
+            bench_training(
+                args.updates,
+                args.short_frames,
+                args.long_frames,
+                args.sb3_frames,
+                args.threads,
+                args.load,
+                tuple(args.override),
+            )
         )
         print(training_table(record))
     elif args.suite == "quality":

@@ -184,13 +184,21 @@ def bench_bare(cfg, observation_size: int, buffer, updates: int) -> float:
 
 
 def bench_training(
-    updates: int, short_frames: int, long_frames: int, sb3_frames: int, threads: int | str, load: bool = True
+    updates: int,
+    short_frames: int,
+    long_frames: int,
+    sb3_frames: int,
+    threads: int | str,
+    load: bool = True,
+    overrides: tuple[str, ...] = (),
 ) -> dict:
-    """Every measurement of the module docstring, in this order, on the threads ``threads`` chooses."""
+    """Every measurement of the module docstring, in this order, on the threads ``threads`` chooses;
+    ``overrides`` (train.py's, e.g. ``env.channel=single_path``) apply to every run, SB3's included."""
     count, why = choose_threads(threads)
-    record: dict = {"benchmark": "training"}
+    extra = list(overrides)
+    record: dict = {"benchmark": "training", "overrides": extra}
     record["threads"] = {"setting": threads, "count": count, "why": why, "torch_default": TORCH_THREADS}
-    default = compose_training([])
+    default = compose_training(extra)
     utd = float(default.collector.updates_per_frame)
     with torch_threads(count):
         record["update"] = bench_update(updates)
@@ -199,15 +207,15 @@ def bench_training(
         record["runs"] = []
         for frames in (short_frames, long_frames):
             plan, auto = compile_plan(default, frames)  # what train.py would choose for this run
-            for mode, overrides in (("eager", EAGER), ("compiled", COMPILED)):
-                row = train_run(frames, [*overrides, f"threads={threads}"])
+            for mode, switches in (("eager", EAGER), ("compiled", COMPILED)):
+                row = train_run(frames, [*extra, *switches, f"threads={threads}"])
                 chosen = plan.compile_update == (mode == "compiled")
                 record["runs"].append({"mode": mode, "auto": auto, "default": chosen, **row})
-        record["train_ddpg"] = train_run(long_frames, ["agent=ddpg", *COMPILED, f"threads={threads}"])
-        record["sb3"] = bench_sb3(sb3_frames, utd)
+        record["train_ddpg"] = train_run(long_frames, [*extra, "agent=ddpg", *COMPILED, f"threads={threads}"])
+        record["sb3"] = bench_sb3(sb3_frames, utd, extra)
         if load:
             settings = [str(TORCH_THREADS)] + ([str(threads)] if str(threads) != str(TORCH_THREADS) else [])
-            record["load"] = bench_load(short_frames, settings, sb3_frames, utd)
+            record["load"] = bench_load(short_frames, settings, sb3_frames, utd, extra)
     if record["sb3"] is not None:
         for row in record["runs"]:
             row["over_sb3"] = row["loop_frames_per_s"] / record["sb3"]["frames_per_s"]
@@ -259,11 +267,12 @@ def run_in_child(args: str) -> None:
     print(json.dumps(record))
 
 
-def bench_sb3(frames: int, updates_per_frame: float) -> dict | None:
+def bench_sb3(frames: int, updates_per_frame: float, overrides: list[str] | None = None) -> dict | None:
     """Stable-Baselines3 DDPG (:func:`waterair.bench.sb3.sb3_ddpg`) on one link of the environment
-    ``agent=ddpg`` trains on at ``updates_per_frame``, timed over ``frames`` frames after a warm-up
-    past its first updates."""
-    model = sb3_ddpg(compose_training(["agent=ddpg", f"collector.updates_per_frame={updates_per_frame}"]))
+    ``agent=ddpg`` trains on (with ``overrides``) at ``updates_per_frame``, timed over ``frames`` frames
+    after a warm-up past its first updates."""
+    settings = [*(overrides or []), "agent=ddpg", f"collector.updates_per_frame={updates_per_frame}"]
+    model = sb3_ddpg(compose_training(settings))
     if model is None:
         return None
     model.learn(3000)
@@ -276,19 +285,23 @@ def bench_sb3(frames: int, updates_per_frame: float) -> dict | None:
     }
 
 
-def bench_load(frames: int, settings: list[str], sb3_frames: int, updates_per_frame: float) -> dict:
-    """The default run of ``frames`` frames at each thread setting, quiet then beside a busy process, and SB3."""
+def bench_load(
+    frames: int, settings: list[str], sb3_frames: int, updates_per_frame: float, overrides: list[str] | None = None
+) -> dict:
+    """The default run (with ``overrides``) of ``frames`` frames at each thread setting, quiet then beside a
+    busy process, and SB3."""
     record: dict = {"frames": frames, "rows": []}
+    extra = list(overrides or [])
     for setting in settings:
-        quiet = train_run(frames, [f"threads={setting}"])
+        quiet = train_run(frames, [*extra, f"threads={setting}"])
         with busy_process():
-            loaded = train_run(frames, [f"threads={setting}"])
+            loaded = train_run(frames, [*extra, f"threads={setting}"])
         ratio = loaded["loop_frames_per_s"] / quiet["loop_frames_per_s"]
         record["rows"].append({"threads": setting, "quiet": quiet, "loaded": loaded, "loaded_over_quiet": ratio})
-    quiet_sb3 = bench_sb3(sb3_frames, updates_per_frame)
+    quiet_sb3 = bench_sb3(sb3_frames, updates_per_frame, extra)
     if quiet_sb3 is not None:
         with busy_process():
-            loaded_sb3 = bench_sb3(sb3_frames, updates_per_frame)
+            loaded_sb3 = bench_sb3(sb3_frames, updates_per_frame, extra)
         ratio = loaded_sb3["frames_per_s"] / quiet_sb3["frames_per_s"]
         record["sb3"] = {"quiet": quiet_sb3, "loaded": loaded_sb3, "loaded_over_quiet": ratio}
     return record
@@ -309,6 +322,7 @@ def training_table(record: dict) -> str:
     u, t = record["update"], record["threads"]
     lines = [
         f"torch threads: {t['count']} ({t['why']}); torch's own default here: {t['torch_default']}",
+        f"overrides of every run: {' '.join(record.get('overrides', [])) or 'none (the defaults)'}",
         "",
         "| quantity | value |",
         "|---|---|",

@@ -11,9 +11,12 @@ Compiled functions are built on first use and shared by every environment in the
 
 from __future__ import annotations
 
+import contextlib
 import functools
+from collections.abc import Iterator
 
 import torch
+from tensordict import TensorDict, is_tensorclass
 
 from waterair.envs import kernel
 from waterair.envs.kernel import Solve, StepConstants
@@ -33,12 +36,36 @@ DENSE_FINISH_BATCH = 64
 """Up to this batch size those iterations run densely over the batch (cheaper than gathering)."""
 
 
+MEMO_TYPES = (torch.Tensor, TensorDict, dict, list, tuple, int, float)
+"""Types tensordict is asked about (``is_tensorclass``) around a step. It remembers the answers in a dict whose
+size a compiled step's guards check, so the first answers given after a graph was compiled (in a rollout:
+``Tensor`` after the first step) threw that graph away: asked before the first compile, they cost nothing."""
+BATCH_SOURCES = r"L\['(state|moved|solution|action|noise)'\].*:0"
+"""The step functions' inputs whose first dimension is the batch (torch's source names, a regex)."""
+
+
+@contextlib.contextmanager
+def varying_environments(job: str) -> Iterator[None]:
+    """Compiles inside the block for many environments of a few configurations (an evaluation): the step's
+    batch size is symbolic from the first graph, and torch's profile of the other inputs found to vary
+    (a scenario's beam divergence ω_D) is kept across processes under ``job``.
+
+    Outside it a graph is specialised to its environment (training: one batch, one configuration). Within
+    one process torch compiles a graph per configuration and batch size, and once more for a float (ω_D)
+    the first time it changes; the profile lets the next process compile that float symbolic at once.
+    """
+    with torch.compiler.config.patch(job_id=job, dynamic_sources=BATCH_SOURCES):
+        yield
+
+
 @functools.cache
 def compiled(name: str):
     """``torch.compile`` of the kernel function ``name`` (``step``, ``finish`` or ``conclude``)."""
     dynamo = torch._dynamo.config
     dynamo.recompile_limit = max(dynamo.recompile_limit, RECOMPILE_LIMIT)
     dynamo.accumulated_recompile_limit = max(dynamo.accumulated_recompile_limit, 4 * RECOMPILE_LIMIT)
+    for kind in MEMO_TYPES:  # see MEMO_TYPES
+        is_tensorclass(kind)
     return torch.compile(getattr(kernel, name))
 
 

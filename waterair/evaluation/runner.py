@@ -27,6 +27,7 @@ from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import CONTROLLERS
 from waterair.envs.link import link_budget
+from waterair.envs.stepper import varying_environments
 from waterair.evaluation.divergence import at_divergence, outage_against_power, scenario_link
 from waterair.evaluation.metrics import scenario_metrics
 from waterair.evaluation.policies import INTERFACE_KEYS, LearnedPolicy, as_list, checkpoint_sources, load_policy
@@ -35,6 +36,8 @@ from waterair.evaluation.scenarios import Scenario, scenarios_from_config
 from waterair.physics.link import LinkBudget
 
 UPPER_BOUND = "upper_bound"
+COMPILE_PROFILE = "waterair-evaluation"
+"""The name torch keeps the evaluations' compile profile under (which step inputs vary; its cache folder)."""
 SENSING = ("trained", "scenario")
 """``sensing``: each learned policy with the sensor it was trained with, or every policy with the scenario's."""
 
@@ -203,6 +206,14 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
     )
     # Scenarios with the same realisations, steps and seed run as one batch over the union of their
     # points; within it, every group of policies sharing an interface runs as replicas of one env.
+    with varying_environments(COMPILE_PROFILE):
+        _run(plan, result, progress)
+    result.seconds = time.perf_counter() - clock
+    return result
+
+
+def _run(plan: EvaluationPlan, result: Evaluation, progress) -> None:
+    """Every scenario batch at each of its divergences, every policy group on it, into ``result``."""
     for batch in _batches(plan.scenarios):
         points = list(dict.fromkeys(p for s in batch for p in s.points))
         first = batch[0]
@@ -221,8 +232,6 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
                 index = torch.tensor([points.index(p) for p in scenario.points])
                 selected = {label: {k: v[:, index] for k, v in t.items()} for label, t in runs.items()}
                 _collect(result, scenario, selected, plan.bootstrap, divergence)
-    result.seconds = time.perf_counter() - clock
-    return result
 
 
 def _batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:

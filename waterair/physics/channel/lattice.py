@@ -123,7 +123,20 @@ class TwoScale(ChannelModel):
         nodes = self.nodes**2
         if light.shape[1] == nodes:
             return receive(light, tx_dir, rx_dir, self.optics)
-        return receive(light[:, nodes:], tx_dir, rx_dir, self.optics, bound_light=light[:, :nodes])
+        beam, bound = _columns(light, nodes, None), _columns(light, 0, nodes)
+        return receive(beam, tx_dir, rx_dir, self.optics, bound_light=bound)
+
+
+def _columns(light: LightSamples, start: int, stop: int | None) -> LightSamples:
+    """``light[:, start:stop]``, sliced field by field: a compiled step's batch size stays symbolic (the
+    tensorclass's own slicing evaluates it, so torch would compile a graph per batch size)."""
+    weight = light.weight[:, start:stop]
+    return LightSamples(
+        weight=weight,
+        departure=light.departure[:, start:stop],
+        arrival=light.arrival[:, start:stop],
+        batch_size=weight.shape,
+    )
 
 
 def _scaled(light: LightSamples, factor: torch.Tensor) -> LightSamples:
