@@ -204,9 +204,7 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
         link=plan.link,
         links=plan.links,
     )
-    # Scenarios with the same realisations, steps and seed run as one batch over the union of their
-    # points; within it, every group of policies sharing an interface runs as replicas of one env.
-    with varying_environments(COMPILE_PROFILE):
+    with varying_environments(COMPILE_PROFILE):  # one step graph per policy group, whatever the batch
         _run(plan, result, progress)
     result.seconds = time.perf_counter() - clock
     return result
@@ -214,6 +212,8 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
 
 def _run(plan: EvaluationPlan, result: Evaluation, progress) -> None:
     """Every scenario batch at each of its divergences, every policy group on it, into ``result``."""
+    # Scenarios with the same realisations, steps and seed run as one batch over the union of their
+    # points; within it, every group of policies sharing an interface runs as replicas of one env.
     for batch in _batches(plan.scenarios):
         points = list(dict.fromkeys(p for s in batch for p in s.points))
         first = batch[0]
