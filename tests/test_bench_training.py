@@ -4,6 +4,8 @@ The runs themselves are minutes long and measured by ``python -m waterair.bench 
 replaced by a recorder, so what is checked is which configuration each would have run.
 """
 
+import contextlib
+
 import pytest
 
 from waterair.bench import __main__ as cli
@@ -25,16 +27,8 @@ def recorded(monkeypatch):
     monkeypatch.setattr(training, "train_run", train_run)
     monkeypatch.setattr(training, "bench_sb3", bench_sb3)
     monkeypatch.setattr(training, "bench_update", lambda updates: {"bare_ms": 1.0})
-    monkeypatch.setattr(training, "busy_process", _no_process)
+    monkeypatch.setattr(training, "busy_process", contextlib.nullcontext)
     return calls
-
-
-class _no_process:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
 
 
 def test_every_timed_run_and_sb3_get_the_overrides(recorded):

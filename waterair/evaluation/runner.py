@@ -217,17 +217,17 @@ def _run(plan: EvaluationPlan, result: Evaluation, progress) -> None:
     for batch in _batches(plan.scenarios):
         points = list(dict.fromkeys(p for s in batch for p in s.points))
         first = batch[0]
+        names = "+".join(s.name for s in batch)
         for divergence in first.divergences or (None,):  # S5: every point at each divergence
+            at = f" at {divergence * 1e3:g} mrad" if divergence is not None else ""
+            what = f"{names}{at} ({len(points)} points × {first.realisations} seas × {first.steps} steps)"
             runs = {}
             for env_config, members in plan.groups:
                 start = time.perf_counter()
                 env_config = at_divergence(env_config, divergence)
                 runs.update(rollout_policies(env_config, members, points, first.realisations, first.steps, first.seed))
-                names = ", ".join(label for label, _ in members)
-                scenario_names = "+".join(s.name for s in batch)
-                at = f" at {divergence * 1e3:g} mrad" if divergence is not None else ""
-                progress(f"{scenario_names}{at} ({len(points)} points × {first.realisations} seas × {first.steps} "
-                         f"steps): {names} in {time.perf_counter() - start:.0f} s")  # fmt: skip
+                labels = ", ".join(label for label, _ in members)
+                progress(f"{what}: {labels} in {time.perf_counter() - start:.0f} s")
             for scenario in batch:
                 index = torch.tensor([points.index(p) for p in scenario.points])
                 selected = {label: {k: v[:, index] for k, v in t.items()} for label, t in runs.items()}
