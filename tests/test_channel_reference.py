@@ -11,6 +11,9 @@ channel and the counting tracer on the measured-slope sea (gains +0.25 to +0.9 %
 rollouts, the bounds +0.3 to +0.7 %, G_0 not at all); and a second: the full channel on that sea now places
 a lattice for the pointing beside the bound's, on 9 × 9 nodes over ±4.5 σ instead of 7 × 7 over ±4 σ
 (docs/model.md §4.3; over these rollouts the gains −1.2 % and +0.8 %, the bounds −1.2 % and −0.1 % on average).
+The ``residual_realistic`` cases were recorded again when the residual interface gained its acquisition
+(docs/environment.md, "Residual actions": the reset's reading, taken with the gimbals parked, steers nothing),
+which changes their pointing at the first two steps and so every step after.
 Every other case is still the first recording, bit for bit: the paper's single path (`+experiment=paper`)
 among them.
 

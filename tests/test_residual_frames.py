@@ -11,6 +11,7 @@ from waterair.envs.baselines import FlatSeaSnell, PreviousPathTracking
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import AoATracker
 from waterair.envs.env import WaterAirEnv
+from waterair.envs.kernel import flat_tilts
 from waterair.envs.rewards import Reward
 
 SMALL = dict(num_envs=6, sea={"n_wavenumbers": 12, "n_dir": 8}, seed=4)
@@ -59,12 +60,34 @@ def test_a_zero_residual_on_the_aoa_base_is_the_aoa_tracker():
 
 
 @pytest.mark.parametrize("policy", [FlatSeaSnell, PreviousPathTracking])
-def test_baselines_point_the_same_in_residual_and_absolute_mode(policy):
+def test_baselines_point_the_same_in_residual_and_absolute_mode_once_acquired(policy):
     gains = []
     for mode in ("absolute", "residual"):
         env = WaterAirEnv(EnvConfig(action_mode=mode, residual_deg=45.0, **SMALL, **SENSING))
         gains.append(env.rollout(15, policy(env))["next", "gain"])
-    torch.testing.assert_close(gains[0], gains[1], rtol=1e-4, atol=1e-9)
+    acquired = SENSING["latency_steps"] + 1  # the residual applies from the first reading of the own pointing
+    torch.testing.assert_close(gains[0][:, acquired:], gains[1][:, acquired:], rtol=1e-4, atol=1e-9)
+    flat = WaterAirEnv(EnvConfig(action_mode="absolute", **SMALL, **SENSING))
+    before = flat.rollout(acquired, FlatSeaSnell(flat))["next", "gain"]
+    torch.testing.assert_close(gains[1][:, :acquired], before, rtol=1e-4, atol=1e-9)  # the base's pointing
+
+
+@pytest.mark.parametrize("latency", [0, 2])
+def test_while_only_the_parked_reading_has_arrived_the_ends_take_the_base_pointing(latency):
+    sensing = {**SENSING, "latency_steps": latency, "offset_range": (0.05, 0.15)}  # near: the parked beam is seen
+    env = WaterAirEnv(EnvConfig(action_mode="residual", residual_base="aoa_tracker", **SMALL, **sensing))
+    td = env.reset()
+    assert td["observation"][:, env.config.observation_layout["spot_valid"]].any()  # readings the parking ignores
+    flat = flat_tilts(env.state["flat_point"], env.tx_position, env.rx_position)
+    tilts = []
+    generator = torch.Generator().manual_seed(0)
+    for _ in range(latency + 2):
+        td["action"] = torch.rand(6, 4, generator=generator) * 2 - 1
+        td = env.step(td)["next"]
+        tilts.append(td["tilt"])
+    for tilt in tilts[: latency + 1]:  # the readings of the parked gimbals steer nothing: flat-sea Snell
+        torch.testing.assert_close(tilt, flat.to(tilt.dtype), rtol=0, atol=1e-6)
+    assert (tilts[latency + 1] - flat).abs().max() > 0.01  # then the tracker and the residual take over
 
 
 def test_stacked_frames_hold_the_earlier_observations_newest_first():

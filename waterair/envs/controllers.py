@@ -13,7 +13,7 @@ import math
 import torch
 
 from waterair.envs.baselines import FlatSeaSnell, PointingPolicy
-from waterair.envs.sensors import back_projection, intensity_from_feature
+from waterair.envs.sensors import back_projection, intensity_from_feature, read_parked
 
 
 class AoATracker(PointingPolicy):
@@ -26,7 +26,10 @@ class AoATracker(PointingPolicy):
     * Receiver: boresight along the measured incoming direction (from R toward the surface point).
     * Transmitter: the incoming ray, back-projected from R to the mean sea level z = 0, gives a
       point P0; the transmitter points at P0 (the wave height at the true point is unknown).
-    * No reading (``spot_valid`` 0: no light, or below the detector threshold): flat-sea Snell.
+    * No reading (``spot_valid`` 0: no light, or below the detector threshold), or only the one read
+      with the gimbals parked upright at the reset (acquisition: the first ``latency_steps + 1``
+      decisions): flat-sea Snell. With the beam aimed away from the path, the centroid of the light
+      on the detector leans toward the beam's axis, and its back-projection with it.
     """
 
     name = "aoa_tracker"
@@ -37,7 +40,9 @@ class AoATracker(PointingPolicy):
         observation = tensordict.get("observation")
         boresight = self.env.observation_part(observation, "rx_pointing")
         spot = self.env.observation_part(observation, "spot")
-        seen = self.env.observation_part(observation, "spot_valid")[:, 0] > 0.5
+        steps = torch.round(self.env.observation_part(observation, "time")[:, 0] * self.env.config.max_steps)
+        parked = read_parked(steps, self.env.config.latency_steps)
+        seen = (self.env.observation_part(observation, "spot_valid")[:, 0] > 0.5) & ~parked
         tx, rx = tensordict.get("tx_position"), tensordict.get("rx_position")
         return back_projection(boresight, spot, seen, tx, rx, (flat_tx, flat_rx), self.env.optics.half_fov)
 

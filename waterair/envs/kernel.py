@@ -30,6 +30,7 @@ from waterair.envs.sensors import (
     back_projection,
     intensity_feature,
     packet_sizes,
+    read_parked,
     spot_position,
 )
 from waterair.physics.channel import ChannelModel, LightSamples, LinkEnds, Transceiver, pointing
@@ -141,8 +142,10 @@ def advance(c: StepConstants, state: dict, action: torch.Tensor) -> dict:
     if c.action_mode == "absolute":
         tx, rx = action[:, :2] * c.max_tilt, action[:, 2:] * c.max_tilt
     elif c.action_mode == "residual":
-        base = base_tilts(c, state)
-        tx, rx = base[:, :2] + action[:, :2] * c.residual, base[:, 2:] + action[:, 2:] * c.residual
+        # the correction applies from the first reading taken with the controller's own pointing
+        base, tracking = base_tilts(c, state), ~read_parked(state["steps"], c.sensor.latency_steps)
+        residual = action * (c.residual * tracking.to(action.dtype)).unsqueeze(-1)
+        tx, rx = base[:, :2] + residual[:, :2], base[:, 2:] + residual[:, 2:]
     else:
         tx, rx = state["tx_tilt"] + action[:, :2] * c.slew_step, state["rx_tilt"] + action[:, 2:] * c.slew_step
     return {
@@ -161,13 +164,14 @@ def flat_tilts(point: torch.Tensor, tx: torch.Tensor, rx: torch.Tensor) -> torch
 
 def base_tilts(c: StepConstants, state: dict) -> torch.Tensor:
     """The residual base controller's tilts ``[B, 4]`` for the next action: flat-sea Snell, or the
-    quadrant-detector back-projection of the delivered packet (flat-sea Snell where it has no reading)."""
+    quadrant-detector back-projection of the delivered packet (flat-sea Snell where it has no reading, or
+    only the one read with the gimbals parked at the reset)."""
     point, tx, rx = state["flat_point"], state["tx_position"], state["rx_position"]
     if c.residual_base == "flat_snell":
         return flat_tilts(point, tx, rx)
     delivered = unpack(state["packets"][:, -1])
     flat = unit_vector(point - tx), unit_vector(point - rx)
-    seen = delivered["spot_valid"][:, 0] > 0.5
+    seen = (delivered["spot_valid"][:, 0] > 0.5) & ~read_parked(state["steps"], c.sensor.latency_steps)
     tx_dir, rx_dir = back_projection(delivered["rx_pointing"], delivered["spot"], seen, tx, rx, flat, c.optics.half_fov)
     return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
 

@@ -54,6 +54,13 @@ def spot_position(arrival: torch.Tensor, boresight: torch.Tensor, half_fov: floa
     )
 
 
+def read_parked(steps: torch.Tensor, latency_steps: int) -> torch.Tensor:
+    """Whether the packet delivered for the decision after ``steps`` ``[n]`` steps since a reset was read with
+    the gimbals parked as the reset leaves them (straight up and down): the reset's own packet, which the
+    first ``latency_steps + 1`` decisions receive. A tracker learns nothing about its own pointing from it."""
+    return steps <= latency_steps
+
+
 def back_projection(
     boresight: torch.Tensor,
     spot: torch.Tensor,
