@@ -36,7 +36,9 @@ class WaterAirEnv(EnvBase):
     vectors are action · sin(max_tilt); in ``delta`` mode action · sin(max_slew · dt) is added to
     the current tilt (a slew-rate-limited gimbal); in ``residual`` mode action · sin(residual_deg)
     is added to the tilts of a base controller (``residual_base``: flat-sea Snell, or the quadrant
-    back-projection of the delivered packet), so the agent corrects it and never starts blind.
+    back-projection of the delivered packet), so the agent corrects it and never starts blind; the
+    first ``latency_steps + 1`` actions after a reset, which only the reading of the parked gimbals
+    informs, are not applied (the base points alone, by flat-sea Snell: docs/environment.md).
     Tilts are then limited to |v| ≤ sin(max_tilt); the transmitter points (v, +sqrt(1 − |v|²))
     and the receiver (v, −sqrt(1 − |v|²)). Values
     outside [-1, 1] are clipped; NaN actions raise ``ValueError``.
