@@ -14,7 +14,8 @@ from waterair.agents.checkpoint import CheckpointError, policy_state, save_polic
 from waterair.agents.networks import make_actor
 from waterair.evaluation.figures import physics_figures
 from waterair.evaluation.metrics import METRICS
-from waterair.evaluation.policies import SHIPPED, latest_run, load_policy, shipped_policy
+from waterair.evaluation.per_divergence import serving
+from waterair.evaluation.policies import SHIPPED, LearnedPolicy, latest_run, load_policy, shipped_policy
 from waterair.evaluation.report import ROW_KEYS, write_outputs
 from waterair.evaluation.runner import compare_policies, evaluate, prepare
 from waterair.physics.sea import ElfouhailySea, JonswapSea
@@ -97,13 +98,18 @@ def tiny_run(tmp_path_factory):
     return run_dir
 
 
-def write_policy(path: Path, observation_size: int, extras=(), with_config=True) -> Path:
-    """A policy file with a random 16×16 actor for ``observation_size`` inputs (and a config beside it)."""
+def write_policy(
+    path: Path, observation_size: int, extras=(), with_config=True, divergence=None, seed=0, **env
+) -> Path:
+    """A policy file with a random 16×16 actor for ``observation_size`` inputs (and a config beside it, with the
+    ``env`` keys given and the beam divergence it was trained at where ``divergence`` is given)."""
     actor_cfg = OmegaConf.create({"hidden": [16, 16], "activation": "relu"})
-    torch.manual_seed(0)
+    torch.manual_seed(seed)
     save_policy(path, policy_state(make_actor(observation_size, 4, [16, 16], "relu"), observation_size, None))
     if with_config:
-        env = {"observation_extras": list(extras), "max_steps": 500, "wind": 12.0}
+        env = {"observation_extras": list(extras), "max_steps": 500, "wind": 12.0, **env}
+        if divergence is not None:
+            env["optics"] = {"divergence": divergence}
         OmegaConf.save(OmegaConf.create({"agent": {"name": "ddpg"}, "actor": actor_cfg, "env": env}),
                        path.with_suffix(".yaml"))  # fmt: skip
     return path
@@ -216,6 +222,43 @@ def test_the_divergence_study_writes_its_tables_figures_and_power_sweep_on_its_o
     assert "### Each policy's best divergence" in report and "### Outage against transmit power" in report
     learned = labels[1]  # what it gains over flat-sea Snell and the quadrant tracker, each at its best divergence
     assert f"| 20 | 10% | {learned} | flat_snell | " in report and f"| 20 | 50% | {learned} | aoa_tracker | " in report
+
+
+def test_policies_trained_per_divergence_act_as_one_each_at_its_own_divergence(tmp_path):
+    residual = {"action_mode": "residual", "residual_base": "flat_snell", "residual_deg": 2.0}  # some light at each
+    narrow = write_policy(tmp_path / "narrow.pt", observation_size=8, divergence=0.01, seed=1, **residual)
+    wide = write_policy(tmp_path / "wide.pt", observation_size=8, divergence=0.05, seed=2, **residual)
+    study = [*S5_TINY, "baselines=[flat_snell]", "scenarios.S5.power_sweep=null", "labels=[mine]"]
+    alone = {
+        d: evaluate(eval_cfg(f"checkpoint={p}", *study), progress=lambda _: None)
+        for d, p in ((0.01, narrow), (0.05, wide))
+    }
+    study[-1] = "labels=[mine,mine]"
+    both = evaluate(eval_cfg(f"checkpoint=[{wide},{narrow}]", *study), progress=lambda _: None)
+    assert [p["label"] for p in both.policies] == ["upper_bound", "mine", "flat_snell"]
+    assert [(m["divergence"], Path(m["source"]).name) for m in both.policies[1]["per_divergence"]] == [
+        (0.01, "narrow.pt"), (0.05, "wide.pt")]  # fmt: skip
+    for divergence, other in ((0.01, 0.05), (0.05, 0.01)):
+        for offset in (0.1, 0.5):
+            point = (20.0, offset, 0.0)
+            got = both.row("S5", "mine", point, divergence)
+            # each divergence's own policy acts there: the same numbers as evaluated alone, not the other's
+            assert got["ratio_to_ub"] == alone[divergence].row("S5", "mine", point, divergence)["ratio_to_ub"]
+            assert got["ratio_to_ub"] != alone[other].row("S5", "mine", point, divergence)["ratio_to_ub"]
+    # trained at the same divergence, or without a config saying which: two policies, told apart
+    twice = prepare(eval_cfg(f"checkpoint=[{narrow},{narrow}]", "labels=[mine,mine]"))
+    assert [p.label for p in twice.policies] == ["mine", "mine #2"]
+
+
+def test_the_policy_acting_at_a_divergence_is_the_one_trained_nearest_on_a_log_scale():
+    def trained(label, divergence):
+        return LearnedPolicy(label, None, OmegaConf.create({"env": {"optics": {"divergence": divergence}}}))
+
+    five, twenty, lone = trained("a", 0.005), trained("a", 0.02), trained("b", 0.05)
+    policies = [five, twenty, lone]
+    assert serving(policies, 0.009) == [five, lone]  # 1.8× from 5 mrad, 2.2× from 20
+    assert serving(policies, 0.01) == [twenty, lone]  # 2× from each: the wider beam
+    assert serving(policies, 0.1) == [twenty, lone]  # the lone policy acts everywhere
 
 
 @pytest.mark.parametrize(

@@ -124,6 +124,9 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
         if policy["kind"] == "learned":
             trained = ", ".join(f"{k} = {v}" for k, v in policy["trained_on"].items()) or "config not found"
             lines.append(f"- **{policy['label']}**: `{policy['source']}`, {policy['frames']} frames ({trained})")
+            if "per_divergence" in policy:  # a policy per divergence: each acts at the divergences nearest its own
+                each = ", ".join(f"{m['divergence'] * 1e3:g} mrad `{m['source']}`" for m in policy["per_divergence"])
+                lines.append(f"  - trained per beam divergence, the nearest acting at each: {each}")
     lines += [
         f"- baselines: {', '.join(p['label'] for p in result.policies if p['kind'] == 'baseline')}",
         f"- `{UPPER_BOUND}`: both ends along the exact current path (docs/model.md §4)",

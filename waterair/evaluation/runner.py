@@ -30,6 +30,7 @@ from waterair.envs.link import link_budget
 from waterair.envs.stepper import varying_environments
 from waterair.evaluation.divergence import at_divergence, outage_against_power, scenario_link
 from waterair.evaluation.metrics import scenario_metrics
+from waterair.evaluation.per_divergence import labelled, name_policies, serving, trained_divergence
 from waterair.evaluation.policies import INTERFACE_KEYS, LearnedPolicy, as_list, checkpoint_sources, load_policy
 from waterair.evaluation.rollouts import REFERENCES, rollout_policies
 from waterair.evaluation.scenarios import Scenario, scenarios_from_config
@@ -158,10 +159,10 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
         if labels and len(labels) != len(sources):
             raise ValueError(f"labels has {len(labels)} entries for {len(sources)} checkpoints")
         policies = [load_policy(p, labels[i] if labels else None) for i, p in enumerate(sources)]
-    _unique_labels(policies)
+    name_policies(policies, (*REFERENCES, UPPER_BOUND))
     if compile_kernel == "auto":  # every policy, baseline and the bound roll out every scenario's points
         per_policy = sum(len(s.points) * s.realisations * s.steps * max(1, len(s.divergences)) for s in scenarios)
-        frames = (len(policies) + len(baselines) + 1) * per_policy
+        frames = (len({p.label for p in policies}) + len(baselines) + 1) * per_policy
         base = base.replace(compile_kernel=compiling_pays(frames, channel=base.channel)[0])
     sensing = cfg.get("sensing", "trained")
     check_choice("sensing", sensing, SENSING)
@@ -193,7 +194,10 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
     result = Evaluation(
         scenarios=plan.scenarios,
         policies=[{"label": UPPER_BOUND, "kind": "bound"}]
-        + [_describe(policy, plan.env) for policy in plan.policies]
+        + [
+            _describe(labelled(plan.policies, label), plan.env)
+            for label in dict.fromkeys(p.label for p in plan.policies)
+        ]
         + [
             {"label": label, "kind": "baseline", "baseline": name}
             for _, members in plan.groups
@@ -222,7 +226,7 @@ def _run(plan: EvaluationPlan, result: Evaluation, progress) -> None:
             at = f" at {divergence * 1e3:g} mrad" if divergence is not None else ""
             what = f"{names}{at} ({len(points)} points × {first.realisations} seas × {first.steps} steps)"
             runs = {}
-            for env_config, members in plan.groups:
+            for env_config, members in _acting(plan, divergence or plan.env.optics.divergence):
                 start = time.perf_counter()
                 env_config = at_divergence(env_config, divergence)
                 runs.update(rollout_policies(env_config, members, points, first.realisations, first.steps, first.seed))
@@ -232,6 +236,18 @@ def _run(plan: EvaluationPlan, result: Evaluation, progress) -> None:
                 index = torch.tensor([points.index(p) for p in scenario.points])
                 selected = {label: {k: v[:, index] for k, v in t.items()} for label, t in runs.items()}
                 _collect(result, scenario, selected, plan.bootstrap, divergence)
+
+
+def _acting(plan: EvaluationPlan, divergence: float) -> list[tuple]:
+    """``plan.groups`` with only the learned policies that act at ``divergence`` (a policy per divergence)."""
+    acting = {id(p) for p in serving(plan.policies, divergence)}
+    actors = {id(actor) for policy, _, actor in plan.learned if id(policy) in acting}
+    groups = []
+    for env_config, group in plan.groups:
+        kept = [(label, member) for label, member in group if isinstance(member, str) or id(member) in actors]
+        if kept:
+            groups.append((env_config, kept))
+    return groups
 
 
 def _batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
@@ -339,12 +355,15 @@ def _point_metrics(traces: dict[str, torch.Tensor], index: int, bootstrap: Boots
     )
 
 
-def _describe(policy: LearnedPolicy, base: EnvConfig) -> dict:
+def _describe(policies: Sequence[LearnedPolicy], base: EnvConfig) -> dict:
+    """The report's entry of one label: the policy acting at ``base``'s divergence, and each member's
+    divergence, file and frames where there are several (a policy per divergence)."""
+    policy = serving(policies, base.optics.divergence)[0]
     trained = OmegaConf.to_container(policy.config, resolve=True) if policy.config else {}
     env = trained.get("env", {})
     keys = ("wind", "fetch", "offset_ratio", "wind_range", "offset_range")
     differs = {k: v for k, v in env.items() if k in keys and v is not None}
-    return {
+    entry = {
         "label": policy.label,
         "kind": "learned",
         "source": _shown(policy.path),
@@ -353,6 +372,11 @@ def _describe(policy: LearnedPolicy, base: EnvConfig) -> dict:
         "trained_on": differs,
         "observation_size": policy.file.observation_size,
     }
+    if len(policies) > 1:
+        entry["per_divergence"] = [
+            {"divergence": trained_divergence(p), "source": _shown(p.path), "frames": p.file.frames} for p in policies
+        ]
+    return entry
 
 
 def _shown(path: Path) -> str:
@@ -361,17 +385,6 @@ def _shown(path: Path) -> str:
         return str(path.resolve().relative_to(Path.cwd().resolve()))
     except ValueError:
         return str(path)
-
-
-def _unique_labels(policies: Sequence[LearnedPolicy]) -> None:
-    seen: dict[str, int] = {}
-    for policy in policies:
-        if policy.label in REFERENCES or policy.label == UPPER_BOUND:
-            policy.label = f"{policy.label} (learned)"
-        count = seen.get(policy.label, 0)
-        seen[policy.label] = count + 1
-        if count:
-            policy.label = f"{policy.label} #{count + 1}"
 
 
 def _point(row: dict) -> tuple[float, float, float]:
