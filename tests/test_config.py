@@ -4,6 +4,7 @@ import pytest
 from conftest import ROOT, compose_config
 from omegaconf import OmegaConf
 
+from waterair.evaluation.policies import SHIPPED
 from waterair.training.config import validate
 
 GROUPS = {
@@ -120,6 +121,6 @@ def test_a_loss_target_that_does_not_match_the_agent_is_a_one_line_error():
         validate(cfg)
 
 
-@pytest.mark.parametrize("name", ["default", "intensity", "paper"])
+@pytest.mark.parametrize("name", list(SHIPPED))
 def test_each_shipped_policy_config_is_a_valid_config(name):
     validate(OmegaConf.load(ROOT / "waterair" / "assets" / f"{name}.yaml"))

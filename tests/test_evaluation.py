@@ -15,7 +15,7 @@ from waterair.agents.networks import make_actor
 from waterair.evaluation.figures import physics_figures
 from waterair.evaluation.metrics import METRICS
 from waterair.evaluation.per_divergence import serving
-from waterair.evaluation.policies import SHIPPED, LearnedPolicy, latest_run, load_policy, shipped_policy
+from waterair.evaluation.policies import PER_DIVERGENCE, SHIPPED, LearnedPolicy, latest_run, load_policy, shipped_policy
 from waterair.evaluation.report import ROW_KEYS, write_outputs
 from waterair.evaluation.runner import compare_policies, evaluate, prepare
 from waterair.physics.sea import ElfouhailySea, JonswapSea
@@ -446,7 +446,7 @@ def test_each_shipped_policy_loads_matches_its_metrics_and_has_the_documented_co
     # before the threads key, and the default is now auto for both
     for config in (trained, documented):
         config.pop("compile_update"), config["env"].pop("compile_kernel"), config.pop("threads", None)
-    assert policy.label == f"{documented['agent']['name']} {name}"
+    assert policy.label == f"{documented['agent']['name']} {PER_DIVERGENCE.get(name, name)}"
     assert trained == documented
     assert policy.file.frames == documented["total_frames"]
     metrics = json.loads(path.with_name(f"{name}_metrics.json").read_text())
