@@ -58,7 +58,10 @@ def test_compiled_and_eager_steps_agree_and_an_eager_env_beside_a_compiled_one_s
     finish = Stepper._finish_paths
     monkeypatch.setattr(Stepper, "_finish_paths", lambda self, *a: finishes.append(1) or finish(self, *a))
     actions = 0.3 * torch.randn(steps, batch, 4, generator=torch.Generator().manual_seed(batch))
+    bypassed = torch._dynamo.utils.counters["inductor"]["fxgraph_cache_bypass"]
     compiled = rollout(WaterAirEnv(config.replace(compile_kernel=True)), actions)
+    # torch's compile cache keeps the graph (no op with effects in it): a later process pays only tracing
+    assert torch._dynamo.utils.counters["inductor"]["fxgraph_cache_bypass"] == bypassed
     captured = torch._dynamo.utils.counters["stats"]["calls_captured"]
     eager = rollout(WaterAirEnv(config), actions)
     assert torch._dynamo.utils.counters["stats"]["calls_captured"] == captured  # the eager env traced nothing

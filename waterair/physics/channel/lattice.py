@@ -112,7 +112,10 @@ class TwoScale(ChannelModel):
             return everywhere
         shift = (prepared["lattice_pull"] @ (beam_aim(ends.tx, ends.pointing) - centre).unsqueeze(-1))[..., 0]
         on_beam = lattice(centre + shift)
-        share = beam_share(torch.linalg.vector_norm(torch.linalg.solve(basis, shift), dim=-1)).unsqueeze(-1)
+        # solve_ex: linalg.solve's error check is an op with effects, which keeps the compiled step out of the
+        # inductor cache (a full recompile per process); basis is a lattice's, never singular
+        apart = torch.linalg.solve_ex(basis, shift).result
+        share = beam_share(torch.linalg.vector_norm(apart, dim=-1)).unsqueeze(-1)
         blended = [_scaled(everywhere, 1.0 - share), _scaled(on_beam, share)]
         pointed: LightSamples = torch.cat([everywhere, *blended], dim=1)  # type: ignore[assignment]
         return pointed
