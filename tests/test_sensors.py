@@ -193,3 +193,28 @@ def test_in_delta_mode_late_telemetry_does_not_disturb_a_pointing_policy():
         env = WaterAirEnv(**SMALL, num_envs=8, action_mode="delta", latency_steps=latency, offset_ratio=0.5, wind=4.0)
         traces.append(env.rollout(40, FlatSeaSnell(env), break_when_any_done=False)["next", "intensity"])
     assert torch.equal(traces[0], traces[1])
+
+
+@pytest.mark.parametrize("latency", [0, 1])
+def test_the_intensity_dither_takes_no_probe_from_the_parked_gimbals_reading(latency):
+    """Its first fit waits for three probes of its own: until then it points at flat-sea Snell plus the
+    dither triangle; the reading the reset's parked gimbals took (lit at this near offset) is not one."""
+    seen = []
+
+    class Recorded(IntensityDither):
+        def directions(self, tensordict):
+            tx, rx = super().directions(tensordict)
+            seen.append((tx[:, :2] - FlatSeaSnell.directions(self, tensordict)[0][:, :2]).clone())
+            return tx, rx
+
+    env = WaterAirEnv(**{**SMALL, "num_envs": 6, "latency_steps": latency, "offset_ratio": 0.05})
+    td = env.reset()
+    assert (intensity_from_feature(td["observation"][:, env.config.observation_layout["intensity"]]) > 1e-3).all()
+    env.rollout(latency + 5, Recorded(env), auto_reset=False, tensordict=td, break_when_any_done=False)
+    radius = 0.12 * env.optics.divergence
+    first_fit = latency + IntensityDither.PROBES  # parked decisions, then the ones gathering three own probes
+    for k, offset in enumerate(seen[:first_fit]):
+        angle = torch.tensor(2.0 * math.pi * (k % 3) / 3)
+        dither = radius * torch.stack((torch.cos(angle), torch.sin(angle))).to(offset.dtype)
+        torch.testing.assert_close(offset, dither.expand_as(offset), rtol=0, atol=1e-6)
+    assert (seen[first_fit] - seen[0]).abs().max() > 1e-4  # then the fit steers

@@ -65,6 +65,8 @@ class IntensityDither(PointingPolicy):
     triangle that turns by 120° per step, so the next three probes stay well conditioned. Where a
     probe saw less than ``min_intensity``, or the fit is ill-conditioned or lands more than
     ``max_offset`` (tilt) from flat-sea Snell, it starts again from flat-sea Snell (acquisition).
+    The reading of the gimbals parked at the reset (the first ``latency_steps + 1`` decisions) is no
+    probe: it lies far from the dither's triangle, where the beam is no longer the fit's Gaussian.
     The controller keeps its last probes per link; a link whose time reads 0 starts afresh.
 
     With a noisy intensity reading a single fit chases the noise and the sea's own fluctuation from one
@@ -99,7 +101,9 @@ class IntensityDither(PointingPolicy):
         observation = tensordict.get("observation")
         tilt = self.env.observation_part(observation, "tx_pointing")[:, :2]
         intensity = intensity_from_feature(self.env.observation_part(observation, "intensity")[:, 0])
-        self._remember(tilt, intensity, self.env.observation_part(observation, "time")[:, 0] == 0)
+        time = self.env.observation_part(observation, "time")[:, 0]
+        parked = read_parked(torch.round(time * self.env.config.max_steps), self.env.config.latency_steps)
+        self._remember(tilt, intensity, time == 0, parked)
         flat_tilt = flat_tx[:, :2]
         best, usable = self._fit(flat_tilt)
         if self.smoothing == 1.0:  # each step's fit as it is
@@ -118,8 +122,9 @@ class IntensityDither(PointingPolicy):
         vertical = torch.sqrt((1.0 - (tx_tilt**2).sum(-1, keepdim=True)).clamp(min=0.0))
         return torch.cat((tx_tilt, vertical), dim=-1), flat_rx
 
-    def _remember(self, tilt: torch.Tensor, intensity: torch.Tensor, fresh: torch.Tensor) -> None:
-        """Add this step's probe; links at their first step (or a new batch) forget older ones."""
+    def _remember(self, tilt: torch.Tensor, intensity: torch.Tensor, fresh: torch.Tensor, parked: torch.Tensor) -> None:
+        """Add this step's probe; links at their first step (or a new batch) forget older ones, and a reading
+        of the ``parked`` gimbals counts as no light."""
         rows = tilt.shape[0]
         if self.probes is None or self.probes.shape[0] != rows:
             self.probes = torch.zeros(rows, self.PROBES, 3, dtype=tilt.dtype, device=tilt.device)
@@ -129,7 +134,7 @@ class IntensityDither(PointingPolicy):
         self.turn = torch.where(fresh, torch.zeros_like(self.turn), self.turn)
         probe = torch.cat((tilt, torch.log(intensity.clamp(min=1e-12)).unsqueeze(-1)), dim=-1)
         self.probes = torch.cat((probe.unsqueeze(1), self.probes[:, :-1]), dim=1)
-        lit = intensity >= self.min_intensity
+        lit = (intensity >= self.min_intensity) & ~parked
         self.count = torch.where(lit, (self.count + 1).clamp(max=self.PROBES), torch.zeros_like(self.count))
 
     def _fit(self, flat_tilt: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
