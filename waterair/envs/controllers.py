@@ -40,8 +40,7 @@ class AoATracker(PointingPolicy):
         observation = tensordict.get("observation")
         boresight = self.env.observation_part(observation, "rx_pointing")
         spot = self.env.observation_part(observation, "spot")
-        steps = torch.round(self.env.observation_part(observation, "time")[:, 0] * self.env.config.max_steps)
-        parked = read_parked(steps, self.env.config.latency_steps)
+        parked = parked_reading(self.env, observation)
         seen = (self.env.observation_part(observation, "spot_valid")[:, 0] > 0.5) & ~parked
         tx, rx = tensordict.get("tx_position"), tensordict.get("rx_position")
         return back_projection(boresight, spot, seen, tx, rx, (flat_tx, flat_rx), self.env.optics.half_fov)
@@ -101,9 +100,8 @@ class IntensityDither(PointingPolicy):
         observation = tensordict.get("observation")
         tilt = self.env.observation_part(observation, "tx_pointing")[:, :2]
         intensity = intensity_from_feature(self.env.observation_part(observation, "intensity")[:, 0])
-        time = self.env.observation_part(observation, "time")[:, 0]
-        parked = read_parked(torch.round(time * self.env.config.max_steps), self.env.config.latency_steps)
-        self._remember(tilt, intensity, time == 0, parked)
+        fresh = self.env.observation_part(observation, "time")[:, 0] == 0
+        self._remember(tilt, intensity, fresh, parked_reading(self.env, observation))
         flat_tilt = flat_tx[:, :2]
         best, usable = self._fit(flat_tilt)
         if self.smoothing == 1.0:  # each step's fit as it is
@@ -152,6 +150,13 @@ class IntensityDither(PointingPolicy):
         best = solution[:, 1:]
         near = torch.linalg.vector_norm(best - flat_tilt, dim=-1) <= self.max_offset
         return best, (self.count >= self.PROBES) & conditioned & near & torch.isfinite(best).all(-1)
+
+
+def parked_reading(env, observation: torch.Tensor) -> torch.Tensor:
+    """Whether each link's packet in ``observation`` ``[n]`` is the one read with the gimbals parked at the
+    reset (:func:`waterair.envs.sensors.read_parked`), from the episode time the observation carries."""
+    steps = torch.round(env.observation_part(observation, "time")[:, 0] * env.config.max_steps)
+    return read_parked(steps, env.config.latency_steps)
 
 
 CONTROLLERS = {cls.name: cls for cls in (AoATracker, IntensityDither)}
