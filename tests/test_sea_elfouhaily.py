@@ -105,6 +105,18 @@ def test_unresolved_slopes_are_rotated_into_the_wind_frame():
     assert abs(xy) < 1e-12
 
 
+def test_unresolved_slopes_of_a_mixed_batch_are_each_winds_own():
+    """Computed once per distinct wind and handed back in the batch's order: each row as if alone."""
+    sea = sea_state(spectrum="elfouhaily")
+    winds = torch.tensor([12.0, 4.0, 20.0, 12.0, 7.5, 4.0, 20.0, 12.0], dtype=torch.float64)
+    upwind, crosswind = sea.unresolved_slope_variances(winds)
+    for i, wind in enumerate(winds):
+        up, cross = sea.unresolved_slope_variances(wind.reshape(1))
+        assert upwind[i].item() == pytest.approx(up.item(), rel=1e-14)
+        assert crosswind[i].item() == pytest.approx(cross.item(), rel=1e-14)
+    assert upwind[1] < upwind[0] < upwind[2]  # rows not mixed up: slopes grow with the wind
+
+
 def test_capillary_waves_travel_at_their_own_speed():
     sea = sea_state(spectrum="elfouhaily", wavenumber_cutoff=800.0)
     surface = WaveSurface.sample(sea, 1, seed=0, dtype=torch.float64)

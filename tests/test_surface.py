@@ -44,6 +44,36 @@ def test_height_matches_direct_double_sum():
         assert got[b].item() == pytest.approx(total, rel=1e-12, abs=1e-14)
 
 
+def test_eager_sums_over_many_points_match_a_float64_double_sum_in_every_chunk():
+    """Enough seas × points × harmonics that the eager kernel works in chunks of seas: every row is its own
+    sea's sum (a float64 loop over harmonics), in order, and the orders agree with each other."""
+    from waterair.physics.surface import EAGER_CHUNK_ELEMENTS, harmonic_sums
+
+    sea = sea_state(n_freq=16, n_dir=8)
+    seas, points = 7, 400
+    surface = WaveSurface.sample(sea, seas, seed=5)
+    rows = EAGER_CHUNK_ELEMENTS // (points * surface.num_harmonics)
+    assert 1 <= rows < seas  # chunked, with a short last chunk
+    generator = torch.Generator().manual_seed(0)
+    x, y = (20 * torch.rand(seas, points, generator=generator) - 10 for _ in range(2))
+    t = torch.linspace(0.0, 6.0, seas)
+    height, slope_x, slope_y = harmonic_sums(*surface.harmonics, x, y, t, 1)
+    (first,) = harmonic_sums(*surface.harmonics, x, y, t, 0)
+    torch.testing.assert_close(first, height, rtol=0, atol=0)
+    c = [v.double() for v in surface.harmonics]  # omega, phase, kx, ky, amplitude
+    psi = c[0][:, None] * t.double()[:, None, None] + c[1][:, None] - c[2][:, None] * x.double()[..., None]
+    psi = psi - c[3][:, None] * y.double()[..., None]
+    amplitude = c[4][:, None]
+    expected = (
+        (amplitude * torch.cos(psi)).sum(-1),
+        (amplitude * torch.sin(psi) * c[2][:, None]).sum(-1),
+        (amplitude * torch.sin(psi) * c[3][:, None]).sum(-1),
+    )
+    for got, want in zip((height, slope_x, slope_y), expected, strict=True):
+        assert got.shape == (seas, points)
+        torch.testing.assert_close(got.double(), want, rtol=1e-4, atol=1e-4 * want.abs().max().item())
+
+
 def test_derivatives_match_central_differences():
     surface = surface64(batch=4, seed=2)
     x = torch.tensor([0.3, -2.0, 5.5, 1.0], dtype=torch.float64)

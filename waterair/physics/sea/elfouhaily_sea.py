@@ -142,9 +142,11 @@ class ElfouhailySea(SeaState):
         wind = wind.to(torch.float64)
         if self.flat:
             return torch.zeros_like(wind), torch.zeros_like(wind)
-        upwind, crosswind = elfouhaily_slope_variance(self.resolved_cutoff(wind), math.inf, wind, self.fetch)
+        # once per distinct wind (a batch of seas has a few): the integrals are row by row, the same bits
+        speeds, each = torch.unique(wind, return_inverse=True)
+        upwind, crosswind = elfouhaily_slope_variance(self.resolved_cutoff(speeds), math.inf, speeds, self.fetch)
         scale = 0.5 * self._amplitude_factor
-        return scale * upwind, scale * crosswind
+        return scale * upwind[each], scale * crosswind[each]
 
     def _elfouhaily_weights(self, k: torch.Tensor, wind) -> torch.Tensor:
         """Direction weights ``[..., n_dir]`` of the folded Elfouhaily spreading at ``k``, summing to 1."""
