@@ -2,6 +2,7 @@
 
 import pytest
 import torch
+from tensordict import TensorDict
 from torchrl.envs.utils import check_env_specs
 
 from waterair.core.devices import resolve_device
@@ -156,6 +157,44 @@ def test_replicas_share_their_seas_and_points_but_not_their_pointing():
     nxt = env.step(td)["next"]
     torch.testing.assert_close(nxt["gain_upper_bound"][2:4], nxt["gain_upper_bound"][:2], rtol=0, atol=0)
     assert (nxt["gain"][2:4] > 10 * nxt["gain"][:2]).all()
+
+
+def test_replicas_measure_what_each_link_alone_measures():
+    """The channel lights the replicas' pointing-independent lattice once per link (the bound's search too):
+    each replica, pointed its own way for a few steps, measures what the same link alone measures."""
+    links, replicas = 2, 3
+    together = small_env(num_envs=links * replicas, replicas=replicas, offset_values=(0.1, 0.4))
+    alone = small_env(num_envs=links, offset_values=(0.1, 0.4))
+    generator = torch.Generator().manual_seed(1)
+    actions = [0.5 * torch.rand(links * replicas, 4, generator=generator) - 0.25 for _ in range(3)]
+    measured = {}
+    for k in range(replicas):
+        alone.set_seed(7)
+        td = alone.reset()
+        for action in actions:
+            td["action"] = action[k * links : (k + 1) * links]
+            td = alone.step(td)["next"]
+        measured[k] = td
+    together.set_seed(7)
+    td = together.reset()
+    assert torch.equal(together.surface.phase[:links], alone.surface.phase)  # the same seas
+    for action in actions:
+        td["action"] = action
+        td = together.step(td)["next"]
+    for k in range(replicas):
+        rows = slice(k * links, (k + 1) * links)
+        for key in ("gain", "gain_upper_bound", "intensity", "departure", "arrival"):
+            torch.testing.assert_close(td[key][rows], measured[k][key], rtol=1e-5, atol=1e-12, msg=key)
+    assert not torch.allclose(td["gain"][:links], td["gain"][links : 2 * links])  # pointed differently
+
+
+def test_a_reset_mask_resets_the_replicas_of_a_link_together():
+    env = small_env(num_envs=4, replicas=2)
+    env.reset()
+    together = torch.tensor([True, False, True, False]).unsqueeze(-1)
+    env.reset(TensorDict({"_reset": together}, batch_size=[4]))
+    with pytest.raises(ValueError, match=r"replicas of a link together \(env.replicas = 2: link i with link i \+ 2"):
+        env.reset(TensorDict({"_reset": torch.tensor([True, False, False, False]).unsqueeze(-1)}, batch_size=[4]))
 
 
 def test_spot_extra_is_zero_without_light_and_centred_when_aligned():

@@ -66,8 +66,9 @@ class WaterAirEnv(EnvBase):
     the ``*_values`` lists, link i using entry i mod their length), transmitter straight up, receiver
     straight down, t = 0. A ``_reset`` mask resets only the masked links. With ``replicas`` = k the
     batch is k copies of B / k links: link i and link i + B / k get the same sea (and wind and
-    offset) whenever they reset together, as in a rollout: common random numbers, for comparing
-    policies on identical seas in one batch.
+    offset), common random numbers for comparing policies on identical seas in one batch; a
+    ``_reset`` mask resets them together (else a ValueError), and the channel computes what does
+    not depend on the pointing once per link.
 
     **Termination**: none; ``truncated`` (and ``done``) after ``max_steps`` steps (500 → 25 s).
 
@@ -113,7 +114,15 @@ class WaterAirEnv(EnvBase):
         if mask is None:
             rows = torch.arange(self.batch_size[0], device=self.device)
         else:
-            rows = mask.reshape(self.batch_size[0], -1).any(-1).nonzero().squeeze(-1)
+            chosen = mask.reshape(self.batch_size[0], -1).any(-1)
+            copies = chosen.reshape(self.config.replicas, -1)
+            if not bool((copies == copies[:1]).all()):
+                raise ValueError(
+                    f"a _reset mask must reset the replicas of a link together (env.replicas = "
+                    f"{self.config.replicas}: link i with link i + {copies.shape[1]}, ...), so that they keep "
+                    "sharing their seas"
+                )
+            rows = chosen.nonzero().squeeze(-1)
         if rows.numel():
             self._reset_rows(rows)
         full = self._full_state()

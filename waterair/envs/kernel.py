@@ -114,6 +114,9 @@ class StepConstants:
     max_steps: int
     vertical_distance: float
     channel: ChannelModel
+    replicas: int = 1
+    """The batch's copies of its links (``env.replicas``): the channel computes what does not depend on the
+    pointing once per link of them."""
 
     @classmethod
     def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward, channel: ChannelModel) -> StepConstants:
@@ -134,6 +137,7 @@ class StepConstants:
             max_steps=config.max_steps,
             vertical_distance=config.geometry.tx_depth + config.geometry.rx_height,
             channel=channel,
+            replicas=config.replicas,
         )
 
 
@@ -214,16 +218,26 @@ def channel_light(
     tx_dir = pointing(moved["tx_tilt"], up=True)
     ends = LinkEnds(state["tx_position"], state["rx_position"], state["flat_point"], tx_dir)
     prepared = {key: state[key] for key in c.channel.prepared_keys}
-    return c.channel.light(sea, path, ends, moved["time"], prepared, generator)
+    return c.channel.light(sea, path, ends, moved["time"], prepared, generator, copies=c.replicas)
 
 
-def record(c: StepConstants, tilts: dict, path: PathSolution, light: LightSamples, reference_gain, flat_point, noise):
+def record(
+    c: StepConstants,
+    tilts: dict,
+    path: PathSolution,
+    light: LightSamples,
+    reference_gain,
+    flat_point,
+    noise,
+    copies: int = 1,
+):
     """What a solved path and its ``light`` give: the true measurement, the sensor packet and the next warm
     start (:class:`Record`). An invalid path stores the calm-sea point, so that the next solve does not
-    start from a lost one.
+    start from a lost one. ``copies``: the links are that many copies of the first B / copies (a step's
+    ``c.replicas``; a reset of some links, 1).
     """
     tx_dir, rx_dir = pointing(tilts["tx_tilt"], up=True), pointing(tilts["rx_tilt"], up=False)
-    received = c.channel.receive(light, tx_dir, rx_dir)
+    received = c.channel.receive(light, tx_dir, rx_dir, copies=copies)
     true = {
         "gain": received.gain,
         "gain_upper_bound": received.upper_bound,
@@ -271,7 +285,7 @@ def conclude(c: StepConstants, state: dict, moved: dict, solution: Solve, noise,
     if light is None:
         light = channel_light(c, state, path, moved)
     measurement, packet, stored, tracked, feature = record(
-        c, moved, path, light, state["reference_gain"], state["flat_point"], noise
+        c, moved, path, light, state["reference_gain"], state["flat_point"], noise, c.replicas
     )
     history = torch.cat((state["last_feature"].unsqueeze(-1), state["history"][:, :-1]), dim=-1)
     packets = torch.cat((pack(packet, history).unsqueeze(1), state["packets"][:, :-1]), dim=1)

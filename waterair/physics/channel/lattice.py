@@ -33,7 +33,7 @@ import torch
 from waterair.core.validation import check_int, check_range
 from waterair.physics.channel.facets import aperture_slope_variance, facet_normal, interception, slope_density
 from waterair.physics.channel.geometry import Transceiver
-from waterair.physics.channel.light import LightSamples, Reception, receive
+from waterair.physics.channel.light import LightSamples, Reception, receive, repeated
 from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.channel.ray_tube import calm_sea_reference
 from waterair.physics.optics import beam_divergence, water_transmittance
@@ -99,6 +99,7 @@ class TwoScale(ChannelModel):
         time: torch.Tensor,
         prepared: Mapping[str, torch.Tensor],
         generator: torch.Generator | None = None,
+        copies: int = 1,
     ) -> LightSamples:
         followed = near_calm_point(path, ends.calm_point).unsqueeze(-1)
         centre = torch.where(followed, path.point[:, :2], ends.calm_point[:, :2])
@@ -107,7 +108,16 @@ class TwoScale(ChannelModel):
         def lattice(at: torch.Tensor) -> LightSamples:
             return two_scale_light(sea, ends.tx, ends.rx, time, at, basis, blur, self.optics, self.nodes, self.span)
 
-        everywhere = lattice(centre)
+        if copies == 1:
+            everywhere = lattice(centre)
+        else:  # the lattice around the tracked point does not depend on the pointing: once per link
+            links = centre.shape[0] // copies
+            *components, tx, rx, now, at, shape, spread = (
+                v[:links] for v in (*sea, ends.tx, ends.rx, time, centre, basis, blur)
+            )
+            sea_once = tuple(components)
+            once = two_scale_light(sea_once, tx, rx, now, at, shape, spread, self.optics, self.nodes, self.span)
+            everywhere = repeated(once, copies)
         if ends.pointing is None:
             return everywhere
         shift = (prepared["lattice_pull"] @ (beam_aim(ends.tx, ends.pointing) - centre).unsqueeze(-1))[..., 0]
@@ -120,14 +130,15 @@ class TwoScale(ChannelModel):
         pointed: LightSamples = torch.cat([everywhere, *blended], dim=1)  # type: ignore[assignment]
         return pointed
 
-    def receive(self, light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor) -> Reception:
+    def receive(self, light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, copies: int = 1) -> Reception:
         """With the pointing given to :meth:`light`: the bound from the lattice around the tracked point
-        (independent of the pointing), the gain and the detector's reading from its blend with the beam's."""
+        (independent of the pointing; searched once per link of ``copies``), the gain and the detector's
+        reading from its blend with the beam's."""
         nodes = self.nodes**2
         if light.shape[1] == nodes:
-            return receive(light, tx_dir, rx_dir, self.optics)
+            return receive(light, tx_dir, rx_dir, self.optics, copies=copies)
         beam, bound = _columns(light, nodes, None), _columns(light, 0, nodes)
-        return receive(beam, tx_dir, rx_dir, self.optics, bound_light=bound)
+        return receive(beam, tx_dir, rx_dir, self.optics, bound_light=bound, copies=copies)
 
 
 def _columns(light: LightSamples, start: int, stop: int | None) -> LightSamples:

@@ -69,6 +69,7 @@ def receive(
     optics: Transceiver,
     along_path: bool = False,
     bound_light: LightSamples | None = None,
+    copies: int = 1,
 ) -> Reception:
     """Gain, upper bound, best pointing and the quadrant detector's reading for pointings ``[B, 3]``.
 
@@ -79,6 +80,8 @@ def receive(
     ``bound_light``: the same light sampled independently of the pointing, the one the bound is searched
     over, where ``light``'s samples were placed for the pointing (the two-scale lattice, docs/model.md §4.3);
     where the pointing received more than the search found, the bound is that gain (G_UB ≥ G always).
+    ``copies`` = k: the light the bound is searched over is the same for link i and link i + B / k (k copies
+    of the links, pointed differently), so the search runs on the first B / k links and is repeated.
     """
     shares = pointed_gains(light, tx_dir, rx_dir, optics)
     gain = shares.sum(-1)
@@ -88,7 +91,13 @@ def receive(
         alpha_a = angle_between(rx_dir, -arrival)
         spot_arrival, lit = arrival, arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index) > 0
     else:
-        bound, departure, boresight = upper_bound(light if bound_light is None else bound_light, optics)
+        searched = light if bound_light is None else bound_light
+        if copies > 1:
+            links = searched.weight.shape[0] // copies
+            found = upper_bound(first_rows(searched, links), optics)
+            bound, departure, boresight = (v.repeat(copies, *(1,) * (v.dim() - 1)) for v in found)
+        else:
+            bound, departure, boresight = upper_bound(searched, optics)
         if bound_light is not None:  # a second quadrature of the same light: the bound is at least its gain
             bound = torch.maximum(bound, gain)
         arrival = -boresight
@@ -143,6 +152,25 @@ def upper_bound(
     (gain_a, tx_a, rx_a), (gain_b, tx_b, rx_b) = results
     better = (gain_b > gain_a).unsqueeze(-1)
     return torch.maximum(gain_a, gain_b), torch.where(better, tx_b, tx_a), torch.where(better, rx_b, rx_a)
+
+
+def first_rows(light: LightSamples, rows: int) -> LightSamples:
+    """The first ``rows`` links of ``light``, field by field (a compiled step's batch size stays symbolic)."""
+    weight = light.weight[:rows]
+    return LightSamples(
+        weight=weight, departure=light.departure[:rows], arrival=light.arrival[:rows], batch_size=weight.shape
+    )
+
+
+def repeated(light: LightSamples, copies: int) -> LightSamples:
+    """``light`` ``[b, N]`` stacked ``copies`` times along the links, ``[copies · b, N]``."""
+    weight = light.weight.repeat(copies, 1)
+    return LightSamples(
+        weight=weight,
+        departure=light.departure.repeat(copies, 1, 1),
+        arrival=light.arrival.repeat(copies, 1, 1),
+        batch_size=weight.shape,
+    )
 
 
 def brightest(light: LightSamples) -> tuple[torch.Tensor, torch.Tensor]:

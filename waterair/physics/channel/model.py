@@ -73,11 +73,17 @@ class ChannelModel:
         time: torch.Tensor,
         prepared: Mapping[str, torch.Tensor],
         generator: torch.Generator | None = None,
+        copies: int = 1,
     ) -> LightSamples:
         """The light at each receiver ``[B, N]`` for the resolved ``sea`` at ``time`` ``[B]`` (s), the tracked
-        ``path``, the ``ends`` and what :meth:`prepare` gave; ``generator`` for a model that draws."""
+        ``path``, the ``ends`` and what :meth:`prepare` gave; ``generator`` for a model that draws.
+
+        ``copies`` = k says that the batch is k copies of B / k links, link i the same as link i + B / k in
+        everything but the pointing (an evaluation's policies side by side on the same seas): a model may
+        compute what does not depend on the pointing once per link (the two-scale lattice does)."""
         raise NotImplementedError
 
-    def receive(self, light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor) -> Reception:
-        """What pointings ``tx_dir`` (up) and ``rx_dir`` (down) ``[B, 3]`` receive of ``light``."""
+    def receive(self, light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, copies: int = 1) -> Reception:
+        """What pointings ``tx_dir`` (up) and ``rx_dir`` (down) ``[B, 3]`` receive of ``light`` (``copies`` as in
+        :meth:`light`)."""
         return receive(light, tx_dir, rx_dir, self.optics, along_path=self.along_path)

@@ -73,6 +73,7 @@ class RayEstimate(ChannelModel):
         time: torch.Tensor,
         prepared: Mapping[str, torch.Tensor],
         generator: torch.Generator | None = None,
+        copies: int = 1,
     ) -> LightSamples:
         return self.estimate(sea, prepared["unresolved"], ends, time, generator).light
 

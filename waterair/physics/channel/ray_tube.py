@@ -58,6 +58,7 @@ class RayTube(ChannelModel):
         time: torch.Tensor,
         prepared: Mapping[str, torch.Tensor],
         generator: torch.Generator | None = None,
+        copies: int = 1,
     ) -> LightSamples:
         optics, xy = self.optics, path.point[:, :2]
         _, _, hessian, _, _ = fermat_terms(*sea, xy, time, ends.tx, ends.rx, optics.n_water, optics.n_air)

@@ -47,6 +47,7 @@ class SinglePath(ChannelModel):
         time: torch.Tensor,
         prepared: Mapping[str, torch.Tensor],
         generator: torch.Generator | None = None,
+        copies: int = 1,
     ) -> LightSamples:
         g_p, g_ref = _path_terms(path, self.optics)
         weight = g_p * g_ref
