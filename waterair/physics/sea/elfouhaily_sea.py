@@ -142,7 +142,8 @@ class ElfouhailySea(SeaState):
         wind = wind.to(torch.float64)
         if self.flat:
             return torch.zeros_like(wind), torch.zeros_like(wind)
-        # once per distinct wind (a batch of seas has a few): the integrals are row by row, the same bits
+        # once per distinct wind (a batch of seas has a few); the integrals are row by row: the same values, to
+        # a float64 ulp (invisible in the float32 seas)
         speeds, each = torch.unique(wind, return_inverse=True)
         upwind, crosswind = elfouhaily_slope_variance(self.resolved_cutoff(speeds), math.inf, speeds, self.fetch)
         scale = 0.5 * self._amplitude_factor
