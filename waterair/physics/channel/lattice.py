@@ -33,7 +33,7 @@ import torch
 from waterair.core.validation import check_int, check_range
 from waterair.physics.channel.facets import aperture_slope_variance, facet_normal, interception, slope_density
 from waterair.physics.channel.geometry import Transceiver
-from waterair.physics.channel.light import LightSamples, Reception, receive, repeated
+from waterair.physics.channel.light import LightSamples, Reception, receive, repeated, sliced
 from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.channel.ray_tube import calm_sea_reference
 from waterair.physics.optics import beam_divergence, water_transmittance
@@ -137,20 +137,8 @@ class TwoScale(ChannelModel):
         nodes = self.nodes**2
         if light.shape[1] == nodes:
             return receive(light, tx_dir, rx_dir, self.optics, copies=copies)
-        beam, bound = _columns(light, nodes, None), _columns(light, 0, nodes)
+        beam, bound = sliced(light, samples=slice(nodes, None)), sliced(light, samples=slice(nodes))
         return receive(beam, tx_dir, rx_dir, self.optics, bound_light=bound, copies=copies)
-
-
-def _columns(light: LightSamples, start: int, stop: int | None) -> LightSamples:
-    """``light[:, start:stop]``, sliced field by field: a compiled step's batch size stays symbolic (the
-    tensorclass's own slicing evaluates it, so torch would compile a graph per batch size)."""
-    weight = light.weight[:, start:stop]
-    return LightSamples(
-        weight=weight,
-        departure=light.departure[:, start:stop],
-        arrival=light.arrival[:, start:stop],
-        batch_size=weight.shape,
-    )
 
 
 def _scaled(light: LightSamples, factor: torch.Tensor) -> LightSamples:

@@ -94,7 +94,7 @@ def receive(
         searched = light if bound_light is None else bound_light
         if copies > 1:
             links = searched.weight.shape[0] // copies
-            found = upper_bound(first_rows(searched, links), optics)
+            found = upper_bound(sliced(searched, slice(links)), optics)
             bound, departure, boresight = (v.repeat(copies, *(1,) * (v.dim() - 1)) for v in found)
         else:
             bound, departure, boresight = upper_bound(searched, optics)
@@ -154,11 +154,15 @@ def upper_bound(
     return torch.maximum(gain_a, gain_b), torch.where(better, tx_b, tx_a), torch.where(better, rx_b, rx_a)
 
 
-def first_rows(light: LightSamples, rows: int) -> LightSamples:
-    """The first ``rows`` links of ``light``, field by field (a compiled step's batch size stays symbolic)."""
-    weight = light.weight[:rows]
+def sliced(light: LightSamples, rows: slice = slice(None), samples: slice = slice(None)) -> LightSamples:
+    """``light[rows, samples]``, sliced field by field: a compiled step's batch size stays symbolic (the
+    tensorclass's own slicing evaluates it, so torch would compile a graph per batch size)."""
+    weight = light.weight[rows, samples]
     return LightSamples(
-        weight=weight, departure=light.departure[:rows], arrival=light.arrival[:rows], batch_size=weight.shape
+        weight=weight,
+        departure=light.departure[rows, samples],
+        arrival=light.arrival[rows, samples],
+        batch_size=weight.shape,
     )
 
 
