@@ -15,6 +15,8 @@ two-scale lattice on the ocean's: the defaults). Each test compiles its own grap
 another's compile, whatever the order.
 """
 
+import uuid
+
 import pytest
 import torch
 
@@ -109,11 +111,14 @@ def test_fixed_iteration_solver_without_finishing_flags_unconverged_links_invali
         assert torch.isfinite(value).all()
 
 
-def test_an_evaluation_compiles_one_step_graph_for_every_batch_size(monkeypatch):
+def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_beam_divergence(monkeypatch):
     """Inside ``varying_environments`` (what an evaluation runs in) environments of one configuration but
-    different batch sizes share one step graph: nothing in the step fixes the batch size (a tensorclass
-    sliced as a whole did), and tensordict's answers remembered during a rollout do not throw the first
-    graph away. Traced only (dynamo's counting backend), on the defaults' channel over a coarse sea."""
+    different batch sizes and beam divergences (S5 sweeps ω_D) share one step graph: nothing in the step
+    fixes the batch size (a tensorclass sliced as a whole did), the graph reads ω_D as a tensor (as a float
+    it was a constant: one more graph at the first new divergence, on a machine without torch's profile),
+    and tensordict's answers remembered during a rollout do not throw the first graph away. Traced only
+    (dynamo's counting backend), on the defaults' channel over a coarse sea; a job of its own, so that no
+    profile an earlier process kept (one that had seen ω_D vary) makes the float symbolic beforehand."""
     from torch._dynamo.testing import CompileCounter
 
     from waterair.envs import kernel, stepper
@@ -126,9 +131,14 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size(monkeypatch)
 
     monkeypatch.setattr(stepper, "compiled", counted)
     torch._dynamo.reset()
-    with stepper.varying_environments("waterair-tests"):
-        for batch in (2, 5, 3):
+    gains = []
+    with stepper.varying_environments(f"waterair-tests-{uuid.uuid4().hex}"):
+        for batch, divergence in ((2, 0.05), (5, 0.005), (3, 0.02)):
             config = preset_config("quadrant", "realistic", batch, channel="full", compile_kernel=True, **OCEAN)
-            env = WaterAirEnv(config.replace(**CONVERGING))
-            rollout(env, torch.zeros(3, batch, 4))
+            config = config.replace(optics={"divergence": divergence}, **CONVERGING)
+            gains.append(rollout(WaterAirEnv(config), torch.zeros(3, batch, 4))["gain"][:, :2])
+            eager = rollout(WaterAirEnv(config.replace(compile_kernel=False)), torch.zeros(3, batch, 4))
+            torch.testing.assert_close(gains[-1], eager["gain"][:, :2], rtol=1e-4, atol=1e-7)
     assert counter.frame_count == 1
+    # each divergence measured its own gain (eager, which reads ω_D afresh, agreed with each above)
+    assert not torch.allclose(gains[0], gains[1]) and not torch.allclose(gains[1], gains[2])

@@ -89,6 +89,28 @@ def test_departure_gain_is_one_on_axis_and_decreases():
     )
 
 
+@pytest.mark.parametrize("divergence", [0.0005, 0.005, 0.05])
+def test_the_beam_divergence_as_a_tensor_gives_what_the_float_gives(divergence):
+    """A compiled step takes ω_D as a 0-dim tensor (Transceiver.traced): the beam's width and gain are
+    the float's, against the closed form ω_D' = ω_D sqrt(1 + (λ/(π ω_D²))²) (λ/(π ω_D²) = 0.66 at 0.5 mrad)."""
+    from waterair.physics.channel import Transceiver
+    from waterair.physics.optics import beam_divergence
+
+    optics = Transceiver(divergence=divergence)
+    traced = optics.traced("cpu")
+    assert isinstance(traced.divergence, torch.Tensor) and traced.divergence.dim() == 0
+    assert traced.divergence.item() == divergence and traced.divergence.dtype == torch.float64
+    assert (traced.wavelength, traced.half_fov, traced.water) == (optics.wavelength, optics.half_fov, optics.water)
+    closed = divergence * math.sqrt(1.0 + (520e-9 / (math.pi * divergence**2)) ** 2)
+    assert beam_divergence(divergence, 520e-9) == pytest.approx(closed, rel=1e-15)
+    assert beam_divergence(traced.divergence, 520e-9).item() == pytest.approx(closed, rel=1e-15)
+    angles = torch.linspace(0.0, 3 * closed, 13, dtype=torch.float64)
+    as_tensor, as_float = departure_gain(angles, traced.divergence, 520e-9), departure_gain(angles, divergence, 520e-9)
+    torch.testing.assert_close(as_tensor, as_float, rtol=1e-15, atol=0)
+    with pytest.raises(ValueError, match="divergence"):
+        Transceiver(divergence=torch.tensor(2.0))  # the checks read a tensor as its value
+
+
 def test_arrival_gain_inside_and_outside_the_fov():
     half_fov = 0.17
     angles = torch.tensor([0.0, 0.1, 0.17], dtype=torch.float64)

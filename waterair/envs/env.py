@@ -98,7 +98,9 @@ class WaterAirEnv(EnvBase):
         self._set_seed(config.seed)
         self.sensor = Sensor(**config.sensing, half_fov=self.optics.half_fov, generator=self._sensor_generator)
         self.constants = StepConstants.of(config, self.sensor, self.reward_fn, self.channel)
-        self.stepper = Stepper(self.constants, config.solver, config.compile_kernel, self._channel_generator)
+        self.stepper = Stepper(
+            self.constants, config.solver, config.compile_kernel, self._channel_generator, device=self.device
+        )
         columns = kernel.observation_columns(config)
         self._columns = None if columns is None else torch.tensor(columns, device=self.device)
         self._allocate_state()

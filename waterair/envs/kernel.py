@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import torch
@@ -139,6 +139,12 @@ class StepConstants:
             channel=channel,
             replicas=config.replicas,
         )
+
+    def traced(self, device: torch.device) -> StepConstants:
+        """These constants as the compiled step takes them: the beam divergence a tensor on ``device`` in the
+        optics and the channel's (:meth:`Transceiver.traced`), so that one graph serves every ω_D."""
+        optics = self.optics.traced(device)
+        return replace(self, optics=optics, channel=replace(self.channel, optics=optics))
 
 
 def advance(c: StepConstants, state: dict, action: torch.Tensor) -> dict:

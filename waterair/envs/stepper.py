@@ -28,8 +28,8 @@ from waterair.physics.surface import WaveSurface
 RECOMPILE_LIMIT = 128
 """Graphs torch may compile per kernel function in one process. Every environment configuration is a graph of
 its own (the guards are on it), and torch's default limit of 8 is reached by one evaluation (a group of
-policies per sensing, each scenario batch and, in S5, each divergence): past it torch runs the step eagerly,
-15× slower on the full channel, after a wall of warnings."""
+policies per sensing and interface, each on more than one batch): past it torch runs the step eagerly, 15×
+slower on the full channel, after a wall of warnings."""
 FINISH_ITERATIONS = 8
 """Masked Newton iterations of the links a step's fixed-iteration solve leaves unconverged."""
 DENSE_FINISH_BATCH = 64
@@ -48,11 +48,12 @@ BATCH_SOURCES = r"L\['(state|moved|solution|action|noise)'\].*:0"
 def varying_environments(job: str) -> Iterator[None]:
     """Compiles inside the block for many environments of a few configurations (an evaluation): the step's
     batch size is symbolic from the first graph, and torch's profile of the other inputs found to vary
-    (a scenario's beam divergence ω_D) is kept across processes under ``job``.
+    (a float of the configuration that differs between policy groups) is kept across processes under ``job``.
 
     Outside it a graph is specialised to its environment (training: one batch, one configuration). Within
-    one process torch compiles a graph per configuration and batch size, and once more for a float (ω_D)
-    the first time it changes; the profile lets the next process compile that float symbolic at once.
+    one process torch compiles a graph per configuration and batch size, and once more for a float the first
+    time it changes; the profile lets the next process compile that float symbolic at once. The beam
+    divergence ω_D, which an evaluation's S5 sweeps, is never a float of the graph (:meth:`StepConstants.traced`).
     """
     with torch.compiler.config.patch(job_id=job, dynamic_sources=BATCH_SOURCES):
         yield
@@ -74,12 +75,19 @@ class Stepper:
     generator of a channel that draws random numbers (the Monte Carlo tracer)."""
 
     def __init__(
-        self, constants: StepConstants, solver: str, compile_kernel: bool, generator: torch.Generator | None = None
+        self,
+        constants: StepConstants,
+        solver: str,
+        compile_kernel: bool,
+        generator: torch.Generator | None = None,
+        device: torch.device | str = "cpu",
     ):
         self.constants, self.solver, self.compile_kernel = constants, solver, compile_kernel
         self.generator = generator
         pick = compiled if compile_kernel else functools.partial(getattr, kernel)
         self._step, self._finish, self._conclude = pick("step"), pick("finish"), pick("conclude")
+        # what the compiled functions get: ω_D a tensor, so that one graph serves every divergence
+        self.traced = constants.traced(torch.device(device)) if compile_kernel else constants
 
     def __call__(self, surface: WaveSurface, state: dict, action: torch.Tensor, noise):
         """(new state entries, outputs) of one step; ``state`` includes the surface's components."""
@@ -106,8 +114,8 @@ class Stepper:
             )
             slope = -path.normal[:, :2] / path.normal[:, 2:]
             solution = Solve(path.point, slope, path.point[:, :2], path.valid, path.iterations)
-            return self._conclude(c, state, moved, solution, noise)
-        new, outputs, moved, solution = self._step(c, state, action, noise)
+            return self._conclude(self.traced, state, moved, solution, noise)
+        new, outputs, moved, solution = self._step(self.traced, state, action, noise)
         if not c.channel.needs_exact_point or bool(solution.converged.all()):  # the step's one host synchronisation
             return new, outputs
         return self._finish_paths(surface, state, moved, solution, noise)
@@ -130,7 +138,7 @@ class Stepper:
         """
         c = self.constants
         if self.compile_kernel and state["time"].shape[0] <= DENSE_FINISH_BATCH:
-            new, outputs, solution = self._finish(c, state, moved, solution, noise, FINISH_ITERATIONS)
+            new, outputs, solution = self._finish(self.traced, state, moved, solution, noise, FINISH_ITERATIONS)
             if bool(solution.converged.all()):
                 return new, outputs
         options = FixedNewtonOptions(
@@ -151,7 +159,7 @@ class Stepper:
             options,
             self.compile_kernel,
         )
-        return self._conclude(c, state, moved, Solve(point, slope, solution.xy, converged, taken), noise)
+        return self._conclude(self.traced, state, moved, Solve(point, slope, solution.xy, converged, taken), noise)
 
 
 def _path(solution: Solve, state: dict, n_w: float, n_a: float) -> PathSolution:

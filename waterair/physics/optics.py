@@ -6,6 +6,7 @@ docs/model.md §4 (paper Sec. II, eqs. (2)-(5)). Angles in radians, distances in
 from __future__ import annotations
 
 import math
+from typing import overload
 
 import torch
 
@@ -21,6 +22,8 @@ WATER_ATTENUATION_PER_M = {
     "harbor": 2.17,
 }
 """Attenuation coefficient c (1/m) at 532 nm for the usual water types (docs/model.md §4)."""
+Scalar = float | torch.Tensor
+"""A transceiver's number as a float, or as the 0-dim tensor a compiled step takes it as (the beam divergence)."""
 
 
 def critical_angle(n1: float = N_WATER, n2: float = N_AIR) -> float:
@@ -82,22 +85,28 @@ def water_transmittance(
     return fresnel_transmittance(theta1, n1, n2) * torch.exp(-attenuation * d_water)
 
 
-def beam_divergence(divergence: float, wavelength: float) -> float:
+@overload
+def beam_divergence(divergence: float, wavelength: float) -> float: ...
+@overload
+def beam_divergence(divergence: torch.Tensor, wavelength: float) -> torch.Tensor: ...
+def beam_divergence(divergence: Scalar, wavelength: float) -> Scalar:
     """ω_D' = ω_D sqrt(1 + (λ/(π ω_D²))²) (rad): G_D ≈ exp(−2 α²/ω_D'²) for small α (docs/model.md §4.1, eq. 9.1).
 
     Args:
-        divergence: beam divergence ω_D (rad).
+        divergence: beam divergence ω_D (rad): a float, or a 0-dim tensor (as a compiled step gets it,
+            :meth:`~waterair.physics.channel.Transceiver.traced`), which gives a tensor.
         wavelength: wavelength λ (m).
     """
-    return divergence * math.sqrt(1.0 + (wavelength / (math.pi * divergence**2)) ** 2)
+    spread = 1.0 + (wavelength / (math.pi * divergence**2)) ** 2
+    return divergence * (torch.sqrt(spread) if isinstance(spread, torch.Tensor) else math.sqrt(spread))
 
 
-def departure_gain(alpha_d: torch.Tensor, divergence: float, wavelength: float) -> torch.Tensor:
+def departure_gain(alpha_d: torch.Tensor, divergence: Scalar, wavelength: float) -> torch.Tensor:
     """Gaussian-beam departure gain G_D(α_D) (docs/model.md §4, paper eq. (2)), dimensionless, G_D(0) = 1.
 
     Args:
         alpha_d: angle between the transmitter's pointing and the departing ray (rad).
-        divergence: beam divergence ω_D (rad).
+        divergence: beam divergence ω_D (rad), a float or a 0-dim tensor (as :func:`beam_divergence`).
         wavelength: wavelength λ (m).
     """
     spread = 1.0 + (wavelength * torch.cos(alpha_d) / (math.pi * divergence**2)) ** 2

@@ -6,7 +6,7 @@ Distances in metres, angles in radians (``_deg`` names in degrees).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import torch
 
@@ -72,7 +72,8 @@ class Transceiver:
 
     Attributes:
         wavelength: laser wavelength λ (m), in (0, 1e-5].
-        divergence: beam divergence ω_D (rad), in (0, π/2).
+        divergence: beam divergence ω_D (rad), in (0, π/2); a 0-dim tensor in the copy a compiled step
+            takes (:meth:`traced`).
         half_fov: receiver half field of view ω_A (rad), in (0, π/2).
         concentrator_index: n_c (paper n2), in [1, 3].
         water: attenuation preset name, one of :data:`WATER_ATTENUATION_PER_M`.
@@ -103,6 +104,13 @@ class Transceiver:
         check_range("n_water", self.n_water, 1.0, 3.0)
         check_range("n_air", self.n_air, 1.0, self.n_water)
         check_range("aperture_diameter", self.aperture_diameter, 0.0, 1.0, low_open=True, unit="m")
+
+    def traced(self, device: torch.device | str | None = None) -> Transceiver:
+        """This transceiver with ω_D a 0-dim float64 tensor on ``device``, as a compiled step takes it: a graph
+        then reads the beam divergence as an input and serves every divergence (a float would be compiled in
+        as a constant, and each new divergence would compile the step again). Same values, same checks."""
+        divergence = torch.tensor(float(self.divergence), dtype=torch.float64, device=device)
+        return replace(self, divergence=divergence)  # type: ignore[arg-type]  # the one place ω_D is a tensor
 
     @property
     def attenuation_per_m(self) -> float:
