@@ -92,3 +92,42 @@ def test_on_a_calm_sea_aligned_ends_receive_the_reference_gain(model, offset):
     tolerance = 5e-3 if model.prepared_keys else 1e-9
     torch.testing.assert_close(ratio, torch.ones_like(ratio), rtol=0, atol=tolerance)
     assert bool(reception.valid.all())
+
+
+@pytest.mark.parametrize(
+    "model", [SinglePath(OPTICS), RayTube(OPTICS), TwoScale(OPTICS)], ids=lambda m: type(m).__name__
+)
+def test_a_compiling_model_traces_once_for_every_divergence_and_measures_what_the_float_does(model):
+    """Inside the compiled step every model that compiles gets ω_D as a 0-dim tensor (Transceiver.traced):
+    its light and reception must trace into one graph without a break (a ``math`` call or ``float()`` on ω_D
+    breaks it) that serves two divergences, and measure what the model measures eagerly with the float, on a
+    wavy sea with both ends off the path. Traced with dynamo's counting backend."""
+    from dataclasses import replace
+
+    from torch._dynamo.testing import CompileCounter
+
+    sea = sea_state(wind=12.0, spectrum="elfouhaily", n_wavenumbers=8, n_dir=4) if model.prepared_keys else sea_state()
+    surface = WaveSurface.sample(sea, 3, seed=1, dtype=F64)
+    tx, rx = ends(0.2, 3)
+    point = flat_sea_point(tx, rx, OPTICS.n_water, OPTICS.n_air)
+    path = solve_path(surface, tx, rx, 1.0)
+    tilt = torch.tensor([0.004, -0.003, 0.0], dtype=F64)
+    tx_dir, rx_dir = unit_vector(point - tx + tilt), unit_vector(point - rx - tilt)
+    link, time = LinkEnds(tx, rx, point, tx_dir), torch.ones(3, dtype=F64)
+
+    def measure(channel, prepared):
+        reception = channel.receive(channel.light(surface.harmonics, path, link, time, prepared), tx_dir, rx_dir)
+        return reception.gain, reception.upper_bound, reception.alpha_d
+
+    counter = CompileCounter()
+    traced = torch.compile(measure, backend=counter, fullgraph=True)
+    torch._dynamo.reset()
+    for divergence in (0.02, 0.005):
+        optics = Transceiver(divergence=divergence)
+        prepared = replace(model, optics=optics).prepare(tx, rx, surface.unresolved)
+        eager = measure(replace(model, optics=optics), prepared)
+        compiled = traced(replace(model, optics=optics.traced()), prepared)
+        assert bool((eager[0] > 0).all())
+        for got, want in zip(compiled, eager, strict=True):
+            torch.testing.assert_close(got, want, rtol=1e-12, atol=0)
+    assert counter.frame_count == 1
