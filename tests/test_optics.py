@@ -7,10 +7,12 @@ import torch
 from hypothesis import given
 from hypothesis import strategies as st
 
+from waterair.physics.channel import Transceiver
 from waterair.physics.optics import (
     WATER_ATTENUATION_PER_M,
     angle_between,
     arrival_gain,
+    beam_divergence,
     critical_angle,
     departure_gain,
     fresnel_transmittance,
@@ -93,9 +95,6 @@ def test_departure_gain_is_one_on_axis_and_decreases():
 def test_the_beam_divergence_as_a_tensor_gives_what_the_float_gives(divergence):
     """A compiled step takes ω_D as a 0-dim tensor (Transceiver.traced): the beam's width and gain are
     the float's, against the closed form ω_D' = ω_D sqrt(1 + (λ/(π ω_D²))²) (λ/(π ω_D²) = 0.66 at 0.5 mrad)."""
-    from waterair.physics.channel import Transceiver
-    from waterair.physics.optics import beam_divergence
-
     optics = Transceiver(divergence=divergence)
     traced = optics.traced("cpu")
     assert isinstance(traced.divergence, torch.Tensor) and traced.divergence.dim() == 0
