@@ -111,14 +111,27 @@ def test_fixed_iteration_solver_without_finishing_flags_unconverged_links_invali
         assert torch.isfinite(value).all()
 
 
-def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_beam_divergence(monkeypatch):
-    """Inside ``varying_environments`` (what an evaluation runs in) environments of one configuration but
-    different batch sizes and beam divergences (S5 sweeps ω_D) share one step graph: nothing in the step
-    fixes the batch size (a tensorclass sliced as a whole did), the graph reads ω_D as a tensor (as a float
-    it was a constant: one more graph at the first new divergence, on a machine without torch's profile),
-    and tensordict's answers remembered during a rollout do not throw the first graph away. Traced only
-    (dynamo's counting backend), on the defaults' channel over a coarse sea; a job of its own, so that no
-    profile an earlier process kept (one that had seen ω_D vary) makes the float symbolic beforehand."""
+EVALUATION_ENVS = (
+    (4, {"optics": {"divergence": 0.05}, "replicas": 2}),
+    (9, {"optics": {"divergence": 0.005}, "replicas": 3, "intensity_noise": 0.2, "spot_noise_rad": 0.01}),
+    (6, {"optics": {"divergence": 0.02}, "replicas": 2, "intensity_noise_floor": 0.01, "spot_threshold": 0.05}),
+    (6, {"optics": {"divergence": 0.05}, "replicas": 3, "residual_deg": 1.0}),
+)
+"""Environments of one structure (quadrant detector, realistic sensor, residual on the tracker, two or more
+copies of each link) that differ in every number an evaluation's groups differ in: the batch, ω_D (S5), the
+copies of each link (a group's policies), the sensor's noise levels and threshold, and the residual's range."""
+
+
+def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(monkeypatch):
+    """Inside ``varying_environments`` (what an evaluation runs in) environments of one structure share one
+    step graph, whichever of them compiles first: nothing in the step fixes the batch size (a tensorclass
+    sliced as a whole did), the graph reads ω_D, the sensor's noise levels and threshold and the residual's
+    range as tensors and the copies of each link as a symbolic size (as constants, each new value compiled
+    the step again, symbolic only once torch had seen it change: a process's graphs, and what a later
+    process could load from the compile cache, depended on the order of the groups), and tensordict's
+    answers remembered during a rollout do not throw the first graph away. Traced only (dynamo's counting
+    backend), on the defaults' channel over a coarse sea; a job of its own, so that no profile an earlier
+    process kept (one that had seen these vary) makes them symbolic beforehand."""
     from torch._dynamo.testing import CompileCounter
 
     from waterair.envs import kernel, stepper
@@ -133,12 +146,13 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_beam_div
     torch._dynamo.reset()
     gains = []
     with stepper.varying_environments(f"waterair-tests-{uuid.uuid4().hex}"):
-        for batch, divergence in ((2, 0.05), (5, 0.005), (3, 0.02)):
+        for batch, keys in EVALUATION_ENVS:
             config = preset_config("quadrant", "realistic", batch, channel="full", compile_kernel=True, **OCEAN)
-            config = config.replace(optics={"divergence": divergence}, **CONVERGING)
-            gains.append(rollout(WaterAirEnv(config), torch.zeros(3, batch, 4))["gain"][:, :2])
-            eager = rollout(WaterAirEnv(config.replace(compile_kernel=False)), torch.zeros(3, batch, 4))
+            config = config.replace(residual_base="aoa_tracker", **keys, **CONVERGING)
+            actions = torch.linspace(-1.0, 1.0, 3 * batch * 4).reshape(3, batch, 4)
+            gains.append(rollout(WaterAirEnv(config), actions)["gain"][:, :2])
+            eager = rollout(WaterAirEnv(config.replace(compile_kernel=False)), actions)
             torch.testing.assert_close(gains[-1], eager["gain"][:, :2], rtol=1e-4, atol=1e-7)
     assert counter.frame_count == 1
-    # each divergence measured its own gain (eager, which reads ω_D afresh, agreed with each above)
-    assert not torch.allclose(gains[0], gains[1]) and not torch.allclose(gains[1], gains[2])
+    # each environment measured its own gain (eager, which reads every setting afresh, agreed with each above)
+    assert all(not torch.allclose(a, b) for a, b in zip(gains, gains[1:], strict=False))

@@ -141,10 +141,22 @@ class StepConstants:
         )
 
     def traced(self, device: torch.device) -> StepConstants:
-        """These constants as the compiled step takes them: the beam divergence a tensor on ``device`` in the
-        optics and the channel's (:meth:`Transceiver.traced`), so that one graph serves every ω_D."""
+        """These constants as the compiled step takes them: the numbers that differ between an evaluation's
+        environments as 0-dim tensors on ``device``: the beam divergence in the optics and the channel's
+        (:meth:`Transceiver.traced`), the sensor's noise levels and threshold (:meth:`Sensor.traced`) and the
+        residual's range. A graph then serves every value of them, and is the same graph whichever value a
+        process compiled first: a float would be compiled in, and compiled symbolic only once torch had seen it
+        change (in that process, or in an earlier one of the same job), so the graphs, and the compile cache
+        they could share between processes, depended on the order in which groups were run."""
         optics = self.optics.traced(device)
-        return replace(self, optics=optics, channel=replace(self.channel, optics=optics))
+        residual = torch.tensor(float(self.residual), dtype=torch.float64, device=device)
+        return replace(
+            self,
+            optics=optics,
+            channel=replace(self.channel, optics=optics),
+            sensor=self.sensor.traced(device),
+            residual=residual,  # type: ignore[arg-type]  # a tensor only in the compiled step's copy
+        )
 
 
 def advance(c: StepConstants, state: dict, action: torch.Tensor) -> dict:

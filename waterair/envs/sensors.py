@@ -17,10 +17,12 @@ import math
 
 import torch
 
-from waterair.physics.optics import transverse_frame, unit_vector
+from waterair.physics.optics import Scalar, transverse_frame, unit_vector
 
 PACKET_PARTS = ("tx_pointing", "rx_pointing", "intensity", "spot", "spot_valid", "history")
 """Observation parts that travel in the measurement packet, and so arrive ``latency_steps`` late."""
+TRACED_SETTINGS = ("intensity_noise", "intensity_noise_floor", "spot_noise", "spot_threshold")
+"""The :class:`Sensor` settings a compiled step reads as tensors (:meth:`Sensor.traced`)."""
 INTENSITY_EPS = 1e-6
 """Offset inside the observed intensity feature log10(I + ε), so that I = 0 maps to a finite value."""
 
@@ -120,25 +122,35 @@ class Sensor:
         generator: torch.Generator,
     ):
         self.latency_steps = latency_steps
-        self.intensity_noise, self.intensity_noise_floor = intensity_noise, intensity_noise_floor
+        self.intensity_noise: Scalar = intensity_noise
+        self.intensity_noise_floor: Scalar = intensity_noise_floor
         self.intensity_saturation = intensity_saturation
-        self.spot_noise = spot_noise_rad / math.tan(half_fov)
-        self.spot_threshold = spot_threshold
+        self.spot_noise: Scalar = spot_noise_rad / math.tan(half_fov)
+        self.spot_threshold: Scalar = spot_threshold
         self.generator = generator
+        # which noise sources are on: decided here, on the floats, so that a traced copy branches the same way
+        self.noisy_intensity = bool(intensity_noise or intensity_noise_floor)
+        self.noisy_spot = bool(spot_noise_rad)
 
-    @property
-    def noisy_intensity(self) -> bool:
-        return bool(self.intensity_noise or self.intensity_noise_floor)
+    def traced(self, device: torch.device) -> Sensor:
+        """This sensor as a compiled step takes it: its noise levels and spot threshold 0-dim float64 tensors on
+        ``device``, so that one graph serves every setting of them (as floats they would be compiled in, and a
+        group of policies with another sensor would compile the step again). Same readings, same draws."""
+        copy = object.__new__(Sensor)
+        copy.__dict__.update(self.__dict__)
+        for name in TRACED_SETTINGS:
+            setattr(copy, name, torch.tensor(float(getattr(self, name)), dtype=torch.float64, device=device))
+        return copy
 
     def draw(self, count: int, dtype: torch.dtype, device: torch.device) -> torch.Tensor | None:
         """Standard normal draws ``[count, 4]`` for one reading of ``count`` links, or None if noiseless.
 
         Columns 0-1 feed the intensity noise, 2-3 the spot noise; a source that is off draws nothing.
         """
-        if not (self.noisy_intensity or self.spot_noise):
+        if not (self.noisy_intensity or self.noisy_spot):
             return None
         columns = []
-        for on in (self.noisy_intensity, bool(self.spot_noise)):
+        for on in (self.noisy_intensity, self.noisy_spot):
             if on:
                 columns.append(torch.randn(count, 2, generator=self.generator, dtype=torch.float64))
             else:
@@ -160,7 +172,7 @@ class Sensor:
         """Spot reading ``[n, 2]`` and its validity ``[n]`` (float 0/1): noisy where light is seen, else 0."""
         valid = lit & (measured_intensity >= self.spot_threshold)
         reading = true
-        if self.spot_noise and noise is not None:
+        if self.noisy_spot and noise is not None:
             reading = true + self.spot_noise * noise[:, 2:]
         reading = torch.where(valid.unsqueeze(-1), reading, torch.zeros_like(reading))
         return reading, valid.to(true.dtype)

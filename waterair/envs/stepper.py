@@ -40,20 +40,22 @@ MEMO_TYPES = (torch.Tensor, TensorDict, dict, list, tuple, int, float)
 """Types tensordict is asked about (``is_tensorclass``) around a step. It remembers the answers in a dict whose
 size a compiled step's guards check, so the first answers given after a graph was compiled (in a rollout:
 ``Tensor`` after the first step) threw that graph away: asked before the first compile, they cost nothing."""
-BATCH_SOURCES = r"L\['(state|moved|solution|action|noise)'\].*:0"
-"""The step functions' inputs whose first dimension is the batch (torch's source names, a regex)."""
+BATCH_SOURCES = r"L\['(state|moved|solution|action|noise)'\].*:0,L\['c'\]\.replicas"
+"""The step functions' inputs whose first dimension is the batch, and the batch's copies of its links (torch's
+source names, regular expressions, comma-separated): symbolic from the first graph of an evaluation."""
 
 
 @contextlib.contextmanager
 def varying_environments(job: str) -> Iterator[None]:
-    """Compiles inside the block for many environments of a few configurations (an evaluation): the step's
-    batch size is symbolic from the first graph, and torch's profile of the other inputs found to vary
-    (a float of the configuration that differs between policy groups) is kept across processes under ``job``.
+    """Compiles inside the block for many environments of a few structures (an evaluation): the step's batch
+    size and the copies of each link are symbolic from the first graph (one copy, a learned policy's group, is
+    a structure of its own), and torch keeps its profile of what else it saw vary across processes under ``job``.
 
-    Outside it a graph is specialised to its environment (training: one batch, one configuration). Within
-    one process torch compiles a graph per configuration and batch size, and once more for a float the first
-    time it changes; the profile lets the next process compile that float symbolic at once. The beam
-    divergence ω_D, which an evaluation's S5 sweeps, is never a float of the graph (:meth:`StepConstants.traced`).
+    Outside it a graph is specialised to its environment (training: one batch, one configuration). The
+    numbers an evaluation's groups differ in (ω_D, which S5 sweeps, the sensor's noise levels and threshold,
+    the residual's range) are never constants of the graph (:meth:`StepConstants.traced`), so the graphs do not
+    depend on which group compiled first, and a later process (evaluate.py after training's closing
+    evaluation, the next evaluation) loads them from torch's compile cache.
     """
     with torch.compiler.config.patch(job_id=job, dynamic_sources=BATCH_SOURCES):
         yield

@@ -107,9 +107,15 @@ def compare_policies(
     default budget on ``env_config``'s channel).
     """
     link = link or link_budget(None, env_config)
-    runs = rollout_policies(
-        env_config, list(policies.items()), scenario.points[:1], scenario.realisations, scenario.steps, scenario.seed
-    )
+    with varying_environments(COMPILE_PROFILE):  # evaluate.py's graphs: its groups of the same sensing reuse them
+        runs = rollout_policies(
+            env_config,
+            list(policies.items()),
+            scenario.points[:1],
+            scenario.realisations,
+            scenario.steps,
+            scenario.seed,
+        )
     first = next(iter(runs.values()))
     runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
     return {label: _point_metrics(t, 0, bootstrap, link) for label, t in runs.items()}
