@@ -15,8 +15,6 @@ two-scale lattice on the ocean's: the defaults). Each test compiles its own grap
 another's compile, whatever the order.
 """
 
-import uuid
-
 import pytest
 import torch
 
@@ -130,8 +128,8 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(
     the step again, symbolic only once torch had seen it change: a process's graphs, and what a later
     process could load from the compile cache, depended on the order of the groups), and tensordict's
     answers remembered during a rollout do not throw the first graph away. Traced only (dynamo's counting
-    backend), on the defaults' channel over a coarse sea; a job of its own, so that no profile an earlier
-    process kept (one that had seen these vary) makes them symbolic beforehand."""
+    backend), on the defaults' channel over a coarse sea. torch's automatic dynamic shapes are off in the
+    block, so no profile of an earlier process (one that had seen these vary) makes anything symbolic."""
     from torch._dynamo.testing import CompileCounter
 
     from waterair.envs import kernel, stepper
@@ -145,7 +143,7 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(
     monkeypatch.setattr(stepper, "compiled", counted)
     torch._dynamo.reset()
     gains = []
-    with stepper.varying_environments(f"waterair-tests-{uuid.uuid4().hex}"):
+    with stepper.varying_environments():
         for batch, keys in EVALUATION_ENVS:
             config = preset_config("quadrant", "realistic", batch, channel="full", compile_kernel=True, **OCEAN)
             config = config.replace(residual_base="aoa_tracker", **keys, **CONVERGING)
@@ -156,3 +154,31 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(
     assert counter.frame_count == 1
     # each environment measured its own gain (eager, which reads every setting afresh, agreed with each above)
     assert all(not torch.allclose(a, b) for a, b in zip(gains, gains[1:], strict=False))
+
+
+def test_a_groups_graph_in_an_evaluation_does_not_depend_on_the_groups_before_it(monkeypatch):
+    """The realistic sensor's step graph is the same whether or not an ideal-sensor group (no latency: one
+    packet in flight, not two) compiled before it in the process. With torch's automatic dynamic shapes the
+    second compile would make the packets' count symbolic, and the graph, which a later process looks up in
+    torch's compile cache, would depend on the order of the groups. Traced only; the graphs' code compared."""
+    from waterair.envs import kernel, stepper
+
+    def realistic_graph(after_ideal: bool) -> str:
+        codes = []
+
+        def keep(graph, example_inputs):  # a backend that keeps each graph's code and runs it as traced
+            codes.append(graph.code)
+            return graph.forward
+
+        torch._dynamo.reset()
+        step = torch.compile(kernel.step, backend=keep)
+        monkeypatch.setattr(stepper, "compiled", lambda name: step if name == "step" else getattr(kernel, name))
+        with stepper.varying_environments():
+            for sensor in ("ideal", "realistic") if after_ideal else ("realistic",):
+                config = preset_config("quadrant", sensor, 4, channel="full", compile_kernel=True, **OCEAN)
+                rollout(WaterAirEnv(config.replace(**CONVERGING)), torch.zeros(2, 4, 4))
+        assert len(codes) == (2 if after_ideal else 1)
+        return codes[-1]
+
+    alone, after = realistic_graph(after_ideal=False), realistic_graph(after_ideal=True)
+    assert "packets" in alone and alone == after

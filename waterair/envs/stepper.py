@@ -46,18 +46,23 @@ source names, regular expressions, comma-separated): symbolic from the first gra
 
 
 @contextlib.contextmanager
-def varying_environments(job: str) -> Iterator[None]:
+def varying_environments() -> Iterator[None]:
     """Compiles inside the block for many environments of a few structures (an evaluation): the step's batch
     size and the copies of each link are symbolic from the first graph (one copy, a learned policy's group, is
-    a structure of its own), and torch keeps its profile of what else it saw vary across processes under ``job``.
+    a structure of its own), and nothing else ever is.
 
     Outside it a graph is specialised to its environment (training: one batch, one configuration). The
     numbers an evaluation's groups differ in (ω_D, which S5 sweeps, the sensor's noise levels and threshold,
-    the residual's range) are never constants of the graph (:meth:`StepConstants.traced`), so the graphs do not
-    depend on which group compiled first, and a later process (evaluate.py after training's closing
-    evaluation, the next evaluation) loads them from torch's compile cache.
+    the residual's range) are never constants of the graph (:meth:`StepConstants.traced`). torch's automatic
+    dynamic shapes are off in the block: they would make symbolic whatever a process, or an earlier process
+    on the machine, had seen change (the latency's packets, the harmonics of another sea), so a graph would
+    depend on what ran before it, and a later process (evaluate.py after training's closing evaluation, the
+    next evaluation) would compile it again instead of loading it from torch's compile cache.
     """
-    with torch.compiler.config.patch(job_id=job, dynamic_sources=BATCH_SOURCES):
+    with (
+        torch.compiler.config.patch(dynamic_sources=BATCH_SOURCES),
+        torch._dynamo.config.patch(automatic_dynamic_shapes=False),
+    ):
         yield
 
 

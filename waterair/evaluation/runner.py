@@ -37,8 +37,6 @@ from waterair.evaluation.scenarios import Scenario, scenarios_from_config
 from waterair.physics.link import LinkBudget
 
 UPPER_BOUND = "upper_bound"
-COMPILE_PROFILE = "waterair-evaluation"
-"""The name torch keeps the evaluations' compile profile under (which step inputs vary; its cache folder)."""
 SENSING = ("trained", "scenario")
 """``sensing``: each learned policy with the sensor it was trained with, or every policy with the scenario's."""
 
@@ -107,7 +105,7 @@ def compare_policies(
     default budget on ``env_config``'s channel).
     """
     link = link or link_budget(None, env_config)
-    with varying_environments(COMPILE_PROFILE):  # evaluate.py's graphs: its groups of the same sensing reuse them
+    with varying_environments():  # evaluate.py's graphs: a later evaluation loads its policy's from the cache
         runs = rollout_policies(
             env_config,
             list(policies.items()),
@@ -214,7 +212,7 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
         link=plan.link,
         links=plan.links,
     )
-    with varying_environments(COMPILE_PROFILE):  # one step graph per policy group, whatever the batch
+    with varying_environments():  # one step graph per policy group, whatever the batch
         _run(plan, result, progress)
     result.seconds = time.perf_counter() - clock
     return result
