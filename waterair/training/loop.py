@@ -195,12 +195,12 @@ def final_evaluation(cfg: DictConfig, actor) -> dict[str, float]:
     scenario = Scenario("train", "training point", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
     config = env_config(cfg)
     references = {**FINAL_POLICIES, (controller := controller_for(config.observation_extras)): controller}
-    # The references point in absolute tilts (a residual action's range need not reach their pointing) and
-    # read one frame of what they need: the interface evaluate.py runs them in, so that evaluate.py on this
-    # run loads their compiled step from torch's cache. Same seed, same seas: the two rollouts share the
-    # upper bound.
+    # The references point in absolute tilts (a residual action's range need not reach their pointing), read
+    # one frame of what they need and have no residual base to compute (flat-sea Snell's reads nothing): the
+    # interface evaluate.py runs them in, so that evaluate.py on this run loads their compiled step from
+    # torch's cache. Same seed, same seas: the two rollouts share the upper bound.
     reads = tuple(dict.fromkeys(part for name in references for part in REFERENCES[name].required_extras))
-    reference = config.replace(action_mode="absolute", observation_extras=reads, frames=1)
+    reference = config.replace(action_mode="absolute", residual_base="flat_snell", observation_extras=reads, frames=1)
     link = make_link(cfg, config)
     results = compare_policies(reference, references, scenario, link=link)
     results.update(compare_policies(config, {"agent": actor}, scenario, link=link))
