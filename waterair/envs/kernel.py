@@ -34,7 +34,7 @@ from waterair.envs.sensors import (
     spot_position,
 )
 from waterair.physics.channel import ChannelModel, LightSamples, LinkEnds, Transceiver, pointing
-from waterair.physics.optics import unit_vector
+from waterair.physics.optics import traced, unit_vector
 from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path, near_calm_point
 from waterair.physics.paths.fixed import fixed_newton_terms
 from waterair.physics.surface import Harmonics
@@ -149,13 +149,12 @@ class StepConstants:
         change (in that process, or in an earlier one of the same job), so the graphs, and the compile cache
         they could share between processes, depended on the order in which groups were run."""
         optics = self.optics.traced(device)
-        residual = torch.tensor(float(self.residual), dtype=torch.float64, device=device)
         return replace(
             self,
             optics=optics,
             channel=replace(self.channel, optics=optics),
             sensor=self.sensor.traced(device),
-            residual=residual,  # type: ignore[arg-type]  # a tensor only in the compiled step's copy
+            residual=traced(self.residual, device),  # type: ignore[arg-type]  # a tensor only in the compiled step's copy
         )
 
 

@@ -14,10 +14,11 @@ drawn for it.
 from __future__ import annotations
 
 import math
+from copy import copy as shallow_copy
 
 import torch
 
-from waterair.physics.optics import Scalar, transverse_frame, unit_vector
+from waterair.physics.optics import Scalar, traced, transverse_frame, unit_vector
 
 PACKET_PARTS = ("tx_pointing", "rx_pointing", "intensity", "spot", "spot_valid", "history")
 """Observation parts that travel in the measurement packet, and so arrive ``latency_steps`` late."""
@@ -136,10 +137,9 @@ class Sensor:
         """This sensor as a compiled step takes it: its noise levels and spot threshold 0-dim float64 tensors on
         ``device``, so that one graph serves every setting of them (as floats they would be compiled in, and a
         group of policies with another sensor would compile the step again). Same readings, same draws."""
-        copy = object.__new__(Sensor)
-        copy.__dict__.update(self.__dict__)
+        copy = shallow_copy(self)
         for name in TRACED_SETTINGS:
-            setattr(copy, name, torch.tensor(float(getattr(self, name)), dtype=torch.float64, device=device))
+            setattr(copy, name, traced(getattr(self, name), device))
         return copy
 
     def draw(self, count: int, dtype: torch.dtype, device: torch.device) -> torch.Tensor | None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -270,8 +270,7 @@ def _policy_groups(base: EnvConfig, baselines: list[str], learned, together: boo
     that each policy has its classical competitor with the same sensing. ``together=False`` gives
     every policy its own group (own rollout): slower, less memory.
     """
-    required = [part for name in baselines for part in REFERENCES[name].required_extras]
-    reference = base.replace(observation_extras=tuple(dict.fromkeys((*base.observation_extras, *required))))
+    reference = reading(base, baselines)
     references = [(reference, [(name, name) for name in baselines])] if baselines else []
     controllers = [name for name in baselines if name in CONTROLLERS]
     labels: list[str] = []
@@ -293,6 +292,13 @@ def _policy_groups(base: EnvConfig, baselines: list[str], learned, together: boo
             groups.append((env_config, match := []))
         match.append((policy.label, actor))
     return groups
+
+
+def reading(config: EnvConfig, names: Iterable[str]) -> EnvConfig:
+    """``config`` with the observation parts the baselines and controllers ``names`` read (``required_extras``)
+    after its own: the interface they run in."""
+    required = (part for name in names for part in REFERENCES[name].required_extras)
+    return config.replace(observation_extras=tuple(dict.fromkeys((*config.observation_extras, *required))))
 
 
 def sensing_label(sensing: Mapping) -> str:

@@ -23,7 +23,13 @@ WATER_ATTENUATION_PER_M = {
 }
 """Attenuation coefficient c (1/m) at 532 nm for the usual water types (docs/model.md §4)."""
 Scalar = float | torch.Tensor
-"""A transceiver's number as a float, or as the 0-dim tensor a compiled step takes it as (the beam divergence)."""
+"""A number of the configuration as a float, or as the 0-dim tensor a compiled step takes it as (:func:`traced`)."""
+
+
+def traced(value: float, device: torch.device | str | None = None) -> torch.Tensor:
+    """``value`` as a compiled step takes a number that differs between environments: a 0-dim float64 tensor
+    on ``device``, an input of the graph (a float would be compiled in as a constant, one graph per value)."""
+    return torch.tensor(float(value), dtype=torch.float64, device=device)
 
 
 def critical_angle(n1: float = N_WATER, n2: float = N_AIR) -> float:

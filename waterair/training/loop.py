@@ -22,8 +22,7 @@ from waterair.core.threads import AUTO as AUTO_THREADS
 from waterair.core.threads import choose_threads, torch_threads
 from waterair.envs.controllers import controller_for
 from waterair.evaluation.metrics import FADE_FRACTION, METRICS
-from waterair.evaluation.rollouts import REFERENCES
-from waterair.evaluation.runner import compare_policies
+from waterair.evaluation.runner import compare_policies, reading
 from waterair.evaluation.scenarios import Scenario
 from waterair.physics.link import LinkBudget, link_performance
 from waterair.training.builders import (
@@ -199,8 +198,8 @@ def final_evaluation(cfg: DictConfig, actor) -> dict[str, float]:
     # one frame of what they need and have no residual base to compute (flat-sea Snell's reads nothing): the
     # interface evaluate.py runs them in, so that evaluate.py on this run loads their compiled step from
     # torch's cache. Same seed, same seas: the two rollouts share the upper bound.
-    reads = tuple(dict.fromkeys(part for name in references for part in REFERENCES[name].required_extras))
-    reference = config.replace(action_mode="absolute", residual_base="flat_snell", observation_extras=reads, frames=1)
+    bare = config.replace(action_mode="absolute", residual_base="flat_snell", observation_extras=(), frames=1)
+    reference = reading(bare, references)
     link = make_link(cfg, config)
     results = compare_policies(reference, references, scenario, link=link)
     results.update(compare_policies(config, {"agent": actor}, scenario, link=link))

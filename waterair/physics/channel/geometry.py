@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 import torch
 
 from waterair.core.validation import check_choice, check_range
-from waterair.physics.optics import N_AIR, N_WATER, WATER_ATTENUATION_PER_M
+from waterair.physics.optics import N_AIR, N_WATER, WATER_ATTENUATION_PER_M, traced
 
 
 @dataclass(frozen=True)
@@ -109,8 +109,7 @@ class Transceiver:
         """This transceiver with ω_D a 0-dim float64 tensor on ``device``, as a compiled step takes it: a graph
         then reads the beam divergence as an input and serves every divergence (a float would be compiled in
         as a constant, and each new divergence would compile the step again). Same values, same checks."""
-        divergence = torch.tensor(float(self.divergence), dtype=torch.float64, device=device)
-        return replace(self, divergence=divergence)  # type: ignore[arg-type]  # the one place ω_D is a tensor
+        return replace(self, divergence=traced(self.divergence, device))  # type: ignore[arg-type]  # ω_D a tensor
 
     @property
     def attenuation_per_m(self) -> float:
