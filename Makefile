@@ -29,13 +29,15 @@ evaluate: $(STAMP)
 	$(PYTHON) evaluate.py $(ARGS)
 
 # Lint, format check, type check (physics and core), then every test on WORKERS workers, the 15 slowest
-# listed so that growth shows; the last line says how long it all took. CI runs this.
+# listed so that growth shows; the last line says how long it all took. CI runs this. Workers take tests
+# from each other's queues (worksteal): handed out in fixed shares, one worker was left with the slow tests
+# while the other idled (docs/benchmarks.md, "Tests").
 test: $(STAMP)
 	@start=$$(date +%s); \
 	$(VENV)/bin/ruff check $(SOURCES) && \
 	$(VENV)/bin/ruff format --check $(SOURCES) && \
 	$(VENV)/bin/mypy && \
-	$(PYTHON) -m pytest -q -n $(WORKERS) --durations=15; \
+	$(PYTHON) -m pytest -q -n $(WORKERS) --dist worksteal --durations=15; \
 	status=$$?; elapsed=$$(( $$(date +%s) - start )); \
 	echo "make test took $$((elapsed / 60)) min $$((elapsed % 60)) s (exit $$status)"; \
 	exit $$status
@@ -45,7 +47,7 @@ test-fast: $(STAMP)
 	@start=$$(date +%s); \
 	$(VENV)/bin/ruff check $(SOURCES) && \
 	$(VENV)/bin/ruff format --check $(SOURCES) && \
-	$(PYTHON) -m pytest -q -n $(WORKERS) -m "not slow"; \
+	$(PYTHON) -m pytest -q -n $(WORKERS) --dist worksteal -m "not slow"; \
 	status=$$?; elapsed=$$(( $$(date +%s) - start )); \
 	echo "make test-fast took $$((elapsed / 60)) min $$((elapsed % 60)) s (exit $$status)"; \
 	exit $$status

@@ -18,6 +18,13 @@ if os.environ.get("PYTEST_XDIST_WORKER"):  # workers share the cores: one torch 
 ROOT = Path(__file__).resolve().parents[1]
 """The repository root (where train.py, evaluate.py and conf/ live)."""
 
+
+def pytest_collection_modifyitems(items):
+    """The slow tests first, in their files' order: on ``make test``'s workers the longest start while the
+    queue is full, so that no worker is left running one alone at the end."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
 TINY = [
     "env.num_envs=8",
     "env.sea.n_dir=8",
@@ -35,6 +42,7 @@ TINY = [
     "env.compile_kernel=false",
 ]
 """Overrides that shrink a training run to seconds: a few links, a coarse sea, small networks, eager."""
+
 PAPER_PHYSICS = {"spectrum": "jonswap", "channel": "single_path"}
 """The paper's sea and channel (the defaults until they moved to the measured-slope sea and the full channel),
 as env keys: for tests of what was calibrated on them."""
@@ -73,6 +81,15 @@ def compose_config(name: str, overrides=(), **kwargs):
     """``conf/NAME.yaml`` composed with ``overrides``, as train.py / evaluate.py would see it."""
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
         return compose(config_name=name, overrides=list(overrides), **kwargs)
+
+
+@pytest.fixture(scope="session")
+def inductor():
+    """torch.compile started in this process. Its first compile pays a one-off start (on an empty compile cache,
+    about 17 s on the slower machine: inductor probes the C++ compiler and the CPU's vector instructions); a
+    test that compiles takes this fixture, so that the start is paid once per worker, in the setup, and the
+    test's own time is its graphs'."""
+    torch.compile(torch.sin)(torch.zeros(2))
 
 
 @pytest.fixture

@@ -38,8 +38,8 @@ def test_one_line_construction_uses_defaults():
 @pytest.mark.slow
 @pytest.mark.parametrize("wind", [4.0, 12.0, 25.0])
 def test_long_random_rollouts_are_finite_and_below_the_upper_bound(wind):
-    env = WaterAirEnv(num_envs=64, wind=wind, seed=1, n_wavenumbers=24, n_dir=8, max_steps=250)
-    rollout = env.rollout(250, break_when_any_done=False)
+    env = WaterAirEnv(num_envs=32, wind=wind, seed=1, n_wavenumbers=24, n_dir=8, max_steps=150)
+    rollout = env.rollout(150, break_when_any_done=False)  # 7.5 s of 32 seas at each wind
     nxt = rollout["next"]
     for key in ("observation", "reward", "gain", "gain_upper_bound", "intensity"):
         assert torch.isfinite(nxt[key]).all(), key

@@ -150,7 +150,7 @@ def test_batch_size_is_validated():
 
 
 @pytest.mark.slow
-def test_compiled_kernel_matches_eager_and_leaves_eager_callers_eager():
+def test_compiled_kernel_matches_eager_and_leaves_eager_callers_eager(inductor):
     """torch.compile of the harmonic sums gives the eager values; asking for it switches nothing else."""
     sea = sea_state(n_freq=8, n_dir=4)
     s = WaveSurface.sample(sea, 3, seed=0, dtype=torch.float64)
