@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 OUT    ?= outputs
 RUN    ?= $(OUT)/train/$(shell date +%Y-%m-%d/%H-%M-%S)
 SOURCES := waterair hydra_plugins tests train.py evaluate.py
-# pytest-xdist workers: on 2 cores the whole suite takes 0.56x its serial time (docs/benchmarks.md, "Tests")
+# pytest-xdist workers, one torch thread each (docs/benchmarks.md, "Tests")
 WORKERS ?= 2
 
 .PHONY: install train evaluate test test-fast figures bench slurm-check clean
