@@ -143,8 +143,10 @@ def test_killed_run_resumes_to_the_configured_frames(tmp_path):
     assert (run_dir / "metrics.csv").read_bytes() == csv_before and checkpoint.read_bytes() == checkpoint_before
 
     # a larger total_frames extends it to exactly that count; any other changed key is refused
-    refused = run_cli(f"resume={run_dir}", "agent.gamma=0.5")
-    assert refused.returncode != 0 and refused.stderr.strip().startswith("error: resume: agent.gamma=0.5 changes")
+    # (train.py's preflight, in-process: tests/test_cli.py runs a refused command as a process)
+    assert rejection("train.py", [f"resume={run_dir}", "agent.gamma=0.5"]).startswith(
+        "error: resume: agent.gamma=0.5 changes"
+    )
     done = run_cli(f"resume={run_dir}", "total_frames=2800")
     assert done.returncode == 0, done.stderr[-3000:]
     assert torch.load(checkpoint, weights_only=True)["frames"] == 2800
