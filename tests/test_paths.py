@@ -161,3 +161,32 @@ def test_solver_options_are_validated():
         NewtonOptions(max_iter=0)
     with pytest.raises(ValueError, match="shrink = 1"):
         CentroidOptions(shrink=1)
+
+
+@pytest.mark.parametrize("kernel", ["fermat", "fixed"])
+def test_a_compiled_path_kernel_keeps_one_graph_for_every_working_set(kernel, monkeypatch, default_positions):
+    """The adaptive solver's working set shrinks as links converge, and a start point may be a slice of a wider
+    tensor or not: called through :func:`call_compiled`, a compiled path kernel traces once for 8, 5, 3, 2 and 1
+    rows, views or not (a view's base and sizes 1, 2 and 3 each compiled it again), and gives each row what it
+    gives eagerly. Traced with dynamo's counting backend."""
+    from torch._dynamo.testing import CompileCounter
+
+    from waterair.physics.paths import fixed, newton
+
+    counter = CompileCounter()
+    function = newton.fermat_terms if kernel == "fermat" else fixed.fixed_newton_terms
+    settings = (N_W, N_A) if kernel == "fermat" else (N_W, N_A, 2, 1e-10, 1e-4, 2.0)
+    traced = torch.compile(function, dynamic=True, backend=counter)
+    torch._dynamo.reset()
+    surface = WaveSurface.sample(sea_state(wind=12.0, n_freq=16, n_dir=8), 8, seed=2, dtype=torch.float64)
+    tx, rx = (v.expand(8, 3).contiguous() for v in default_positions)
+    starts = torch.randn(8, 3, generator=torch.Generator().manual_seed(0), dtype=torch.float64)  # (x, y) a view
+    for rows in (8, 5, 3, 2, 1):
+        xy = starts[:rows, :2] if rows % 2 else starts[:rows, :2].clone()
+        inputs = (*(getattr(surface, k)[:rows] for k in ("omega", "phase", "kx", "ky", "amplitude")), xy)
+        inputs = (*inputs, torch.full((rows,), 1.5, dtype=torch.float64), tx[:rows], rx[:rows])
+        got = newton.call_compiled(traced, inputs, *settings)
+        for value, want in zip(got, function(*inputs, *settings), strict=True):
+            assert value.shape == want.shape
+            torch.testing.assert_close(value, want, rtol=1e-12, atol=1e-12)
+    assert counter.frame_count == 1

@@ -20,7 +20,13 @@ from dataclasses import dataclass
 import torch
 
 from waterair.core.validation import check_int, check_range
-from waterair.physics.paths.newton import NewtonOptions, fermat_terms, iterate_newton, newton_direction
+from waterair.physics.paths.newton import (
+    NewtonOptions,
+    call_compiled,
+    fermat_terms,
+    iterate_newton,
+    newton_direction,
+)
 from waterair.physics.paths.solution import PathSolution, finish_path
 
 
@@ -116,11 +122,7 @@ def iterate_fixed(surface, tx, rx, time, xy, n_w, n_a, opts: FixedNewtonOptions,
     settings = (n_w, n_a, opts.iterations, opts.tolerance(tx.dtype), opts.armijo, opts.max_step)
     if not compiled:
         return fixed_newton_terms(*inputs, *settings)
-    if tx.shape[0] == 1:
-        # torch.compile specialises size 1: evaluate a doubled row rather than compile a second graph.
-        doubled = tuple(v.expand(2, *v.shape[1:]).contiguous() for v in inputs)
-        return tuple(v[:1] for v in compiled_fixed_newton()(*doubled, *settings))
-    return compiled_fixed_newton()(*inputs, *settings)
+    return call_compiled(compiled_fixed_newton(), inputs, *settings)
 
 
 def finish_unconverged(point, slope, xy, done, taken, surface, tx, rx, time, n_w, n_a, opts, compiled: bool):

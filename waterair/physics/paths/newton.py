@@ -74,12 +74,29 @@ def _fermat(surface, xy, t, tx, rx, n_w, n_a, compiled: bool) -> _Fermat:
     inputs = (surface.omega, surface.phase, surface.kx, surface.ky, surface.amplitude, xy, time, tx, rx)
     if not compiled:
         return _Fermat(*fermat_terms(*inputs, n_w, n_a))
-    if xy.shape[0] == 1:
-        # torch.compile specialises size 1: a lone row would compile a second graph (~1 s) the
-        # first time a working set shrinks to it. Evaluate it twice instead and keep one.
-        doubled = tuple(v.expand(2, *v.shape[1:]).contiguous() for v in inputs)
-        return _Fermat(*(v[:1] for v in _compiled_fermat()(*doubled, n_w, n_a)))
-    return _Fermat(*_compiled_fermat()(*inputs, n_w, n_a))
+    return _Fermat(*call_compiled(_compiled_fermat(), inputs, n_w, n_a))
+
+
+MIN_COMPILED_ROWS = 4
+"""The fewest rows a compiled path kernel is called with: torch specialises a size of 0 or 1, and one equal to a
+fixed size of the inputs (2 for (x, y), 3 for a position) shares its symbol and is specialised with it: a working
+set of one, two or three links would compile the kernel again, for that size only (~10 s each on 2 cores)."""
+
+
+def call_compiled(kernel, inputs: tuple[torch.Tensor, ...], *settings):
+    """``kernel(*inputs, *settings)`` for a compiled path kernel with dynamic shapes, its outputs ``[m, ...]``
+    for inputs of ``m`` rows, so that it keeps one graph whatever ``m`` is.
+
+    Fewer than :data:`MIN_COMPILED_ROWS` rows are repeated up to it (the extra rows' results dropped), and views
+    are copied: torch guards a view's size against its base's, so a start point sliced from a wider tensor, then
+    one that is not a view, each compiled the kernel again (three graphs at a compiled environment's first reset).
+    """
+    rows = inputs[0].shape[0]
+    if 0 < rows < MIN_COMPILED_ROWS:
+        repeat = torch.arange(MIN_COMPILED_ROWS, device=inputs[0].device) % rows
+        outputs = kernel(*(v[repeat] for v in inputs), *settings)
+        return tuple(v[:rows] for v in outputs)
+    return kernel(*(v.clone() if v._is_view() else v for v in inputs), *settings)
 
 
 def fermat_terms(omega, phase, kx, ky, amplitude, xy, t, tx, rx, n_w: float, n_a: float):
