@@ -46,6 +46,14 @@ quadrant tracker, the paper's single path with one Newton iteration a step, so t
 steps."""
 
 
+@pytest.fixture
+def eager_path_kernels(monkeypatch):
+    """The path solves outside the step (the resets', the gathered finishing) run eagerly: for the tests that
+    trace the step only, with a backend of their own."""
+    monkeypatch.setattr(newton, "_compiled_fermat", lambda: newton.fermat_terms)
+    monkeypatch.setattr(fixed, "compiled_fixed_newton", lambda: fixed.fixed_newton_terms)
+
+
 def rollout(env: WaterAirEnv, actions: torch.Tensor) -> dict[str, torch.Tensor]:
     td, trace = env.reset(), {key: [] for key in COMPARED}
     for action in actions:
@@ -166,7 +174,7 @@ copies of each link (a group's policies), the sensor's noise levels and threshol
 
 
 @pytest.mark.slow
-def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(monkeypatch):
+def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(monkeypatch, eager_path_kernels):
     """Inside ``varying_environments`` (what an evaluation runs in) environments of one structure share one
     step graph, whichever of them compiles first: nothing in the step fixes the batch size (a tensorclass
     sliced as a whole did), the graph reads ω_D, the sensor's noise levels and threshold and the residual's
@@ -187,7 +195,6 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(
         return traced.setdefault(name, torch.compile(getattr(kernel, name), backend=counter))
 
     monkeypatch.setattr(stepper, "compiled", counted)
-    monkeypatch.setattr(newton, "_compiled_fermat", lambda: newton.fermat_terms)  # the resets' solve: not traced here
     torch._dynamo.reset()
     gains = []
     with stepper.varying_environments():
@@ -204,7 +211,7 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(
 
 
 @pytest.mark.slow
-def test_a_groups_graph_in_an_evaluation_does_not_depend_on_the_groups_before_it(monkeypatch):
+def test_a_groups_graph_in_an_evaluation_does_not_depend_on_the_groups_before_it(monkeypatch, eager_path_kernels):
     """The realistic sensor's step graph is the same whether or not an ideal-sensor group (no latency: one
     packet in flight, not two) compiled before it in the process. With torch's automatic dynamic shapes the
     second compile would make the packets' count symbolic, and the graph, which a later process looks up in
@@ -222,8 +229,6 @@ def test_a_groups_graph_in_an_evaluation_does_not_depend_on_the_groups_before_it
         torch._dynamo.reset()
         step = torch.compile(kernel.step, backend=keep)
         monkeypatch.setattr(stepper, "compiled", lambda name: step if name == "step" else getattr(kernel, name))
-        monkeypatch.setattr(newton, "_compiled_fermat", lambda: newton.fermat_terms)  # the path solves outside the
-        monkeypatch.setattr(fixed, "compiled_fixed_newton", lambda: fixed.fixed_newton_terms)  # step: not traced
         with stepper.varying_environments():
             for sensor in ("ideal", "realistic") if after_ideal else ("realistic",):
                 config = preset_config("quadrant", sensor, 4, compile_kernel=True, **PAPER, **SMALL_SEA)

@@ -2,8 +2,8 @@
 
 ``+experiment=paper`` builds the environment as train.py does; the test steps it (float64, eager) and computes
 the same rollout through the physics layer a notebook would use: the refracted path by the masked Newton
-iterations from the extrapolated last two points (three, the rest finished eight at a time: the step's
-solver), the paper's gain eq. (1) (:func:`channel_gain`) for the commanded pointing, the intensity over the
+iterations from the extrapolated last two points (three, the rest finished ``FINISH_ITERATIONS`` at a time:
+the step's solver), the paper's gain eq. (1) (:func:`channel_gain`) for the commanded pointing, the intensity over the
 calm-sea gain G_0, the paper's LE reward and its 8-value observation written here. Both run in one process, so
 they round alike on any CPU: a change to the preset or to the paper's step (its sea's time, its path, its
 gain, its sensing, its reward, its observation) fails here wherever the suite runs, where the recorded
@@ -14,6 +14,7 @@ The sea is the environment's: its sampling is checked to the bit against the pap
 import torch
 
 from tests.conftest import compose_config
+from waterair.envs.stepper import FINISH_ITERATIONS
 from waterair.physics.channel import LinkGeometry, Transceiver, calm_sea_gains, channel_gain, pointing
 from waterair.physics.paths import FixedNewtonOptions, finish_path, flat_sea_point, solve_path
 from waterair.physics.paths.fixed import finish_unconverged, iterate_fixed
@@ -22,8 +23,6 @@ from waterair.training.builders import make_env
 LINKS, STEPS = 4, 30
 PAPER = {"max_tilt": 0.7071067811865475, "dt": 0.05, "episode_seconds": 25.0, "newton_iterations": 3}
 """The paper's step: tilt vectors up to sin 45°, 50 ms, 500-step episodes, three Newton iterations a step."""
-FINISH_ITERATIONS = 8
-"""The masked iterations at a time that finish the links three leave unconverged."""
 
 
 def environment_rollout(env, actions):
