@@ -18,17 +18,19 @@ defaults') differ from it only in their light and reception, compiled on their o
 the defaults' channel traces into one step graph is the evaluation tests' below.
 """
 
+import functools
 from dataclasses import replace
 
 import pytest
 import torch
 
 from tests.conftest import preset_config
-from waterair.envs import stepper
+from waterair.envs import kernel, stepper
 from waterair.envs.config import OBSERVATION_EXTRAS
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.stepper import Stepper
 from waterair.physics.channel import LinkEnds, LinkGeometry, RayTube, Transceiver, TwoScale
+from waterair.physics.channel import light as light_module
 from waterair.physics.optics import unit_vector
 from waterair.physics.paths import FixedNewtonOptions, fixed, flat_sea_point, newton, solve_path
 from waterair.physics.sea import sea_state
@@ -63,18 +65,26 @@ def rollout(env: WaterAirEnv, actions: torch.Tensor) -> dict[str, torch.Tensor]:
     return {key: torch.stack(values) for key, values in trace.items()}
 
 
-@pytest.mark.slow
-def test_compiled_and_eager_steps_agree_and_an_eager_env_beside_a_compiled_one_stays_eager(monkeypatch, inductor):
+def compiling_only(monkeypatch, *names: str) -> None:
+    """Compiled environments compile only the kernel functions ``names`` (of ``step``, ``finish``,
+    ``conclude``) with inductor; the others run eagerly, the same code."""
+    real = stepper.compiled
+    monkeypatch.setattr(stepper, "compiled", lambda name: real(name) if name in names else getattr(kernel, name))
+
+
+def compiled_against_eager(monkeypatch) -> None:
+    """STEP's environment, compiled and eager, over the same actions: the same outputs to float32 rounding, the
+    finishing reached on most steps, the graphs kept by torch's compile cache, the eager one tracing nothing."""
     batch, steps = 8, 40
     config = preset_config("quadrant", "realistic", batch, **STEP)
-    finishes = []  # the links a fixed-iteration solve leaves unconverged, finished in a graph of their own
+    finishes = []  # the links a fixed-iteration solve leaves unconverged, finished in graphs of their own
     finish = Stepper._finish_paths
     monkeypatch.setattr(Stepper, "_finish_paths", lambda self, *a: finishes.append(1) or finish(self, *a))
     monkeypatch.setattr(stepper, "FINISH_ITERATIONS", 2)  # the finishing graphs' iterations: the same code, smaller
     actions = 0.3 * torch.randn(steps, batch, 4, generator=torch.Generator().manual_seed(batch))
     bypassed = torch._dynamo.utils.counters["inductor"]["fxgraph_cache_bypass"]
     compiled = rollout(WaterAirEnv(config.replace(compile_kernel=True)), actions)
-    # torch's compile cache keeps the graph (no op with effects in it): a later process pays only tracing
+    # torch's compile cache keeps the graphs (no op with effects in them): a later process pays only tracing
     assert torch._dynamo.utils.counters["inductor"]["fxgraph_cache_bypass"] == bypassed
     captured = torch._dynamo.utils.counters["stats"]["calls_captured"]
     eager = rollout(WaterAirEnv(config), actions)
@@ -88,6 +98,35 @@ def test_compiled_and_eager_steps_agree_and_an_eager_env_beside_a_compiled_one_s
         torch.testing.assert_close(compiled[key], eager[key], rtol=1e-4, atol=atol, msg=key)
 
 
+@pytest.mark.slow
+def test_the_compiled_step_agrees_with_eager_and_an_eager_env_beside_it_stays_eager(
+    monkeypatch, inductor, eager_path_kernels
+):
+    """The step's graph (advance, one Newton iteration, light, reception, sensor, observation, reward); the
+    finishing runs eagerly."""
+    compiling_only(monkeypatch, "step")
+    compiled_against_eager(monkeypatch)
+
+
+@pytest.mark.slow
+def test_the_dense_finishing_graph_agrees_with_eager(monkeypatch, inductor, eager_path_kernels):
+    """The finishing of a small batch (at most DENSE_FINISH_BATCH links): more masked iterations over the whole
+    batch and the step concluded again, one graph; the step before it runs eagerly, as do the few links left for
+    the gathered finishing."""
+    compiling_only(monkeypatch, "finish")
+    compiled_against_eager(monkeypatch)
+
+
+@pytest.mark.slow
+def test_the_concluding_graph_agrees_with_eager(monkeypatch, inductor, eager_path_kernels):
+    """The finishing of a large batch (here every batch: DENSE_FINISH_BATCH 0) gathers the unconverged links for
+    the fixed-iteration and adaptive solvers (their compiled kernels are the fixed-iteration test's below), then
+    concludes the step in a graph of its own; the step before it runs eagerly."""
+    monkeypatch.setattr(stepper, "DENSE_FINISH_BATCH", 0)
+    compiling_only(monkeypatch, "conclude")
+    compiled_against_eager(monkeypatch)
+
+
 FULL_CHANNEL = {
     "ray-tube": (RayTube, {"wind": 12.0, "n_freq": 32, "n_dir": 16}),
     "two-scale": (TwoScale, {"wind": 12.0, **OCEAN}),
@@ -97,12 +136,15 @@ sea (the defaults)."""
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("part", ["light", "reception"])
 @pytest.mark.parametrize("model", list(FULL_CHANNEL))
-def test_the_full_channels_light_and_reception_compile_to_what_they_measure_eagerly(model, inductor):
-    """An environment on the full channel steps as the one above but for the channel's light and reception (that
-    its step traces into one graph is tested below and in tests/test_channel_models.py): those, compiled by
-    inductor with ω_D a tensor as the step compiles them, measure on a wavy sea with both ends off the path what
-    they measure eagerly, to float32 rounding."""
+def test_the_full_channels_light_and_reception_compile_to_what_they_measure_eagerly(model, part, monkeypatch, inductor):
+    """An environment on the full channel steps as the ones above but for the channel's light and reception (that
+    its step traces into one graph is tested below and in tests/test_channel_models.py): each, compiled by
+    inductor on its own with ω_D a tensor as the step compiles them, gives on a wavy sea with both ends off the
+    path what it gives eagerly, to float32 rounding. The upper bound's ascent takes one iteration from each start
+    (the same code, unrolled once rather than UPPER_BOUND_ITERATIONS times)."""
+    monkeypatch.setattr(light_module, "upper_bound", functools.partial(light_module.upper_bound, iterations=1))
     kind, sea = FULL_CHANNEL[model]
     channel, batch = kind(Transceiver()), 4
     surface = WaveSurface.sample(sea_state(**sea), batch, seed=1)
@@ -114,13 +156,21 @@ def test_the_full_channels_light_and_reception_compile_to_what_they_measure_eage
     ends, time = LinkEnds(tx, rx, point, tx_dir), torch.ones(batch)
     prepared = channel.prepare(tx, rx, surface.unresolved)
 
-    def measure(channel):
-        reception = channel.receive(channel.light(surface.harmonics, path, ends, time, prepared), tx_dir, rx_dir)
+    def light(channel):
+        samples = channel.light(surface.harmonics, path, ends, time, prepared)
+        return samples.weight, samples.departure, samples.arrival
+
+    def reception(channel, samples):
+        reception = channel.receive(samples, tx_dir, rx_dir)
         return reception.gain, reception.upper_bound, reception.alpha_d
 
-    eager = measure(channel)
-    compiled = torch.compile(measure)(replace(channel, optics=channel.optics.traced()))
-    assert bool((eager[0] > 0).all())
+    traced = replace(channel, optics=channel.optics.traced())
+    if part == "light":
+        eager, compiled = light(channel), torch.compile(light)(traced)
+    else:
+        samples = channel.light(surface.harmonics, path, ends, time, prepared)
+        eager, compiled = reception(channel, samples), torch.compile(reception)(traced, samples)
+    assert bool((eager[0].reshape(batch, -1).sum(-1) > 0).all())
     for got, want in zip(compiled, eager, strict=True):
         torch.testing.assert_close(got, want, rtol=1e-5, atol=1e-7)
 
@@ -131,8 +181,8 @@ def test_fixed_iteration_paths_obey_snell_and_match_the_adaptive_solver(
     dtype, bound, compiled, default_positions, inductor
 ):
     """The fixed-iteration solver from cold starts (most links need the finishing stages): eagerly in float64,
-    where the bound is tight, and compiled in float32, as environments run it (two iterations at a time, the
-    graphs the step's finishing above compiles: a worker that ran that test has them)."""
+    where the bound is tight, and compiled in float32, as environments run it to finish the links of a large
+    batch (two iterations at a time, as in the tests above)."""
     tx, rx = (v.to(dtype) for v in default_positions)
     surface = WaveSurface.sample(sea_state(wind=12.0), 256, seed=3, dtype=dtype)
     adaptive = solve_path(surface, tx, rx, 4.0)
@@ -186,8 +236,6 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(
     block, so no profile of an earlier process (one that had seen these vary) makes anything symbolic."""
     from torch._dynamo.testing import CompileCounter
 
-    from waterair.envs import kernel
-
     counter, traced, settings = CompileCounter(), {}, stepper.compiled
 
     def counted(name):  # stepper.compiled, with the counting backend instead of inductor
@@ -217,7 +265,6 @@ def test_a_groups_graph_in_an_evaluation_does_not_depend_on_the_groups_before_it
     second compile would make the packets' count symbolic, and the graph, which a later process looks up in
     torch's compile cache, would depend on the order of the groups. Traced only, on the paper's single path over
     a small sea (the packets are the channel's whatever it is); the graphs' code compared."""
-    from waterair.envs import kernel
 
     def realistic_graph(after_ideal: bool) -> str:
         codes = []
