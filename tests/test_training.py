@@ -2,6 +2,7 @@
 
 import csv
 import json
+import logging
 import math
 import os
 import shutil
@@ -18,6 +19,7 @@ from omegaconf import OmegaConf
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 import waterair.training.checkpoint as checkpoint_module
+from waterair.cli import training
 from waterair.cli.training import summary
 from waterair.envs.config import EnvConfig
 from waterair.evaluation.policies import load_policy
@@ -108,7 +110,7 @@ def test_the_saved_policy_is_the_averaged_or_the_last_actor(weights, tmp_path):
 @pytest.mark.slow
 def test_killed_run_resumes_to_the_configured_frames(tmp_path):
     run_dir = tmp_path / "run"
-    args = [*TINY, "total_frames=2400", "checkpoint.every_frames=400", f"hydra.run.dir={run_dir}"]
+    args = [*TINY, "total_frames=1600", "checkpoint.every_frames=400", f"hydra.run.dir={run_dir}"]
     process = subprocess.Popen(
         [sys.executable, "train.py", *args], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
     )
@@ -122,35 +124,44 @@ def test_killed_run_resumes_to_the_configured_frames(tmp_path):
     process.send_signal(signal.SIGKILL)
     process.wait()
     killed_at = torch.load(checkpoint, weights_only=True)["frames"]
-    assert 800 <= killed_at < 2400
+    assert 800 <= killed_at < 1600
 
     done = run_cli(f"resume={run_dir}")
     assert done.returncode == 0, done.stderr[-3000:]
-    assert torch.load(checkpoint, weights_only=True)["frames"] == 2400
-    assert json.loads((run_dir / "final_metrics.json").read_text())["frames"] == 2400
+    assert torch.load(checkpoint, weights_only=True)["frames"] == 1600
+    assert json.loads((run_dir / "final_metrics.json").read_text())["frames"] == 1600
     steps = [step for step, _ in scalars(run_dir)["train/mean_gain"]]
-    assert steps == sorted(set(steps)) and steps[0] == 400 and steps[-1] == 2400
-    assert len(steps) == 2400 // 400  # no step logged twice, none restarted at 0
+    assert steps == sorted(set(steps)) and steps[0] == 400 and steps[-1] == 1600
+    assert len(steps) == 1600 // 400  # no step logged twice, none restarted at 0
     # the closing summary, on the console and in train.log
     for text in (done.stdout, (run_dir / "train.log").read_text()):
-        assert f"Run directory: {run_dir}" in text and "Frames: 2,400" in text and "flat-sea Snell" in text
+        assert f"Run directory: {run_dir}" in text and "Frames: 1,600" in text and "flat-sea Snell" in text
         assert "Its link (10 Mbit/s OOK, 50 mW): outage " in text and "mean BER " in text
 
-    # resuming the finished run changes nothing and says so
-    csv_before, checkpoint_before = (run_dir / "metrics.csv").read_bytes(), checkpoint.read_bytes()
-    done = run_cli(f"resume={run_dir}")
-    assert done.returncode == 0 and "is complete: 2,400 of 2,400 frames" in done.stdout, done.stderr[-2000:]
-    assert (run_dir / "metrics.csv").read_bytes() == csv_before and checkpoint.read_bytes() == checkpoint_before
+
+def test_a_finished_run_resumed_changes_nothing_and_a_larger_total_frames_extends_it(tmp_path, caplog):
+    """What train.py runs after its checks (waterair.cli.training.run), in-process: the test above resumes a
+    killed process."""
+    checkpoint = tmp_path / "checkpoints" / "last.pt"
+
+    def run(*overrides):
+        return training.run(compose_cfg(*overrides), list(overrides), tmp_path)
+
+    run("total_frames=800", "checkpoint.every_frames=400")
+    csv_before, checkpoint_before = (tmp_path / "metrics.csv").read_bytes(), checkpoint.read_bytes()
+    with caplog.at_level(logging.INFO, logger="waterair.train"):
+        run(f"resume={tmp_path}")
+    assert "is complete: 800 of 800 frames" in caplog.text
+    assert (tmp_path / "metrics.csv").read_bytes() == csv_before and checkpoint.read_bytes() == checkpoint_before
 
     # a larger total_frames extends it to exactly that count; any other changed key is refused
-    # (train.py's preflight, in-process: tests/test_cli.py runs a refused command as a process)
-    assert rejection("train.py", [f"resume={run_dir}", "agent.gamma=0.5"]).startswith(
+    # (train.py's preflight: tests/test_cli.py runs a refused command as a process)
+    assert rejection("train.py", [f"resume={tmp_path}", "agent.gamma=0.5"]).startswith(
         "error: resume: agent.gamma=0.5 changes"
     )
-    done = run_cli(f"resume={run_dir}", "total_frames=2800")
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert torch.load(checkpoint, weights_only=True)["frames"] == 2800
-    assert [step for step, _ in scalars(run_dir)["train/mean_gain"]][-2:] == [2400, 2800]
+    run(f"resume={tmp_path}", "total_frames=1200")
+    assert torch.load(checkpoint, weights_only=True)["frames"] == 1200
+    assert [step for step, _ in scalars(tmp_path)["train/mean_gain"]] == [400, 800, 1200]
 
 
 def test_closing_summary_prints_the_links_outage_and_ber_beside_the_ratio(tmp_path):
