@@ -13,10 +13,14 @@ WORKERS ?= 2
 
 install: $(STAMP)
 
+# pip writes no bytecode (it would compile file after file on one core); compileall then compiles every package
+# on all cores, as pip would have (files it cannot compile, a few packages' templates, are skipped as pip skips
+# them), so that imports need not compile anything, also where PYTHONDONTWRITEBYTECODE is set.
 $(STAMP): pyproject.toml
 	test -x $(PYTHON) || python3 -m venv $(VENV)
-	$(PYTHON) -m pip install --quiet --disable-pip-version-check torch==2.13.0
-	$(PYTHON) -m pip install --quiet --disable-pip-version-check -e '.[dev,gym]'
+	$(PYTHON) -m pip install --quiet --disable-pip-version-check --no-compile torch==2.13.0
+	$(PYTHON) -m pip install --quiet --disable-pip-version-check --no-compile -e '.[dev,gym]'
+	$(PYTHON) -m compileall -qq -j 0 $$($(PYTHON) -c 'import sysconfig; print(sysconfig.get_path("purelib"))') || true
 	touch $(STAMP)
 
 # Train into RUN, then evaluate that policy against the baselines into RUN/evaluation.
