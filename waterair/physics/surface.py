@@ -96,6 +96,60 @@ def _harmonic_sums(inputs: Sequence[torch.Tensor], order: int):
     return (height, *slopes, -(a_cos_kx * kx).sum(-1), -(a_cos_kx * ky).sum(-1), -(a_cos * ky * ky).sum(-1))
 
 
+def lattice_harmonic_sums(omega, phase, kx, ky, amplitude, centre, basis, grid, t, order: int):
+    """:func:`harmonic_sums` at the nodes of the affine lattices ``centre + basis · (g_i, g_j)``, without a
+    sine and a cosine per node and harmonic.
+
+    Args: components ``[B, K]``; ``centre`` ``[B, 2]`` (m); ``basis`` ``[B, 2, 2]`` (m, its columns the
+    lattice's steps per unit of ``grid``); ``grid`` ``[n]``, the node coordinates along each axis; ``t`` ``[B]``
+    (s); ``order`` 0-2. Returns :func:`harmonic_sums`'s tuple, each ``[B, n²]``, node (i, j) at i n + j
+    (``torch.meshgrid(grid, grid, indexing="ij")``).
+
+    The phase is affine in the node: ψ(i, j) = ψ_c − g_i α − g_j β with ψ_c the centre's phase and α, β the
+    wavenumber projected on the basis' columns, so that a e^{iψ(i, j)} = (a e^{iψ_c}) e^{−i g_i α} e^{−i g_j β}:
+    1 + 2n complex exponentials per harmonic instead of n², and each sum over harmonics (η, the slopes and the
+    curvatures, each with its wavenumber factor) is a matrix product over the harmonics of the i-factors
+    ``[n, K]`` and the j-factors ``[K, n]``, in real arithmetic (docs/model.md §4.3). Eager PyTorch runs it in
+    chunks of seas, as :func:`harmonic_sums`.
+    """
+    inputs = (omega, phase, kx, ky, amplitude, centre, basis, t)
+    batch = omega.shape[0]
+    rows = max(1, EAGER_CHUNK_ELEMENTS // (grid.shape[0] * omega.shape[-1]))
+    if torch.compiler.is_compiling() or rows >= batch or any(v.shape[0] != batch for v in inputs):
+        return _lattice_sums(inputs, grid, order)
+    parts = [_lattice_sums([v[i : i + rows] for v in inputs], grid, order) for i in range(0, batch, rows)]
+    return tuple(torch.cat(sums) for sums in zip(*parts, strict=True))
+
+
+def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int):
+    """:func:`lattice_harmonic_sums` of ``inputs`` (its arguments but ``grid`` and ``order``) in one pass."""
+    omega, phase, kx, ky, amplitude, centre, basis, t = inputs
+    psi = omega * t.unsqueeze(-1) + phase - kx * centre[:, :1] - ky * centre[:, 1:]
+    c_re, c_im = (amplitude * torch.cos(psi)).unsqueeze(1), (amplitude * torch.sin(psi)).unsqueeze(1)  # a e^{iψ_c}
+    # (g_i α, g_j β) [B, 2, n, K]: the wavenumber projected on each basis column, at each grid coordinate
+    projected = kx.unsqueeze(1) * basis[:, 0, :, None] + ky.unsqueeze(1) * basis[:, 1, :, None]
+    angle = projected.unsqueeze(2) * grid[:, None]
+    cos, sin = torch.cos(angle), torch.sin(angle)
+    cos_a, sin_a, cos_b, sin_b = cos[:, 0], sin[:, 0], cos[:, 1], sin[:, 1]
+    # the i-factors a e^{iψ_c} e^{−i g_i α}, [real | imaginary] over the harmonics, [B, n, 2K]
+    rows = torch.cat((c_re * cos_a + c_im * sin_a, c_im * cos_a - c_re * sin_a), dim=-1)
+    # the j-factors e^{−i g_j β} as the columns that, times [re | im], give the real part (m_re cos + m_im sin)
+    # and the imaginary part (m_im cos − m_re sin) of the product, each weighted per harmonic by its sum's factor
+    real, imaginary = torch.cat((cos_b, sin_b), dim=-1), torch.cat((-sin_b, cos_b), dim=-1)
+    # η = Re Σ a e^{iψ}; η_x, η_y = Im Σ (kx, ky) a e^{iψ}; η_xx, η_xy, η_yy = −Re Σ (kx², kx ky, ky²) a e^{iψ}
+    columns = [real]
+    if order >= 1:
+        columns.append(torch.cat((kx, kx), dim=-1).unsqueeze(1) * imaginary)
+        columns.append(torch.cat((ky, ky), dim=-1).unsqueeze(1) * imaginary)
+    if order == 2:
+        for weight in (kx * kx, kx * ky, ky * ky):
+            columns.append(torch.cat((-weight, -weight), dim=-1).unsqueeze(1) * real)
+    sums = torch.bmm(rows, torch.cat(columns, dim=1).transpose(1, 2))  # [B, n (i), terms × n (j)]
+    batch, n, terms = rows.shape[0], grid.shape[0], len(columns)
+    sums = sums.reshape(batch, n, terms, n).transpose(1, 2).reshape(batch, terms, n * n)
+    return tuple(sums.unbind(1))
+
+
 @functools.cache
 def compiled_harmonic_sums():
     """``torch.compile(harmonic_sums)``, built on first use and shared by every caller that asks.
