@@ -20,7 +20,9 @@ accurate for Gaussian-like integrands. Two lattices of that shape: one around th
 point, independent of the pointing, for the upper bound; one where the beam meets the patch (the
 product of the patch and the footprint around the point the beam is aimed at), for the gain and the
 quadrant detector, so that a pointing far off the patch (straight up) still has nodes under its light.
-Measured against the local estimate in docs/model.md §4.3. Each node is one order-1 surface evaluation.
+Measured against the local estimate in docs/model.md §4.3. Eagerly, the lattice's surface sums take 1 + 2n
+complex exponentials per harmonic rather than one per node (:func:`~waterair.physics.surface.lattice_harmonic_sums`);
+a compiled step sums at each node, which inductor runs faster.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.channel.ray_tube import calm_sea_reference
 from waterair.physics.optics import beam_divergence, water_transmittance
 from waterair.physics.paths import PathSolution, flat_sea_point, near_calm_point
-from waterair.physics.surface import Harmonics, harmonic_sums
+from waterair.physics.surface import Harmonics, harmonic_sums, lattice_harmonic_sums
 
 LATTICE_NODES = 9
 """Nodes per axis of each lattice (2 n² surface evaluations per link with the beam's own): chosen with
@@ -231,7 +233,10 @@ def two_scale_light(
     z = torch.stack(torch.meshgrid(grid, grid, indexing="ij"), dim=-1).reshape(-1, 2)  # [N, 2]
     xy = centre.unsqueeze(1) + torch.einsum("bij,nj->bni", basis, z)
     omega, phase, kx, ky, amplitude = components
-    height, slope_x, slope_y = harmonic_sums(omega, phase, kx, ky, amplitude, xy[..., 0], xy[..., 1], time, 1)
+    if torch.compiler.is_compiling():  # inductor recomputes the factors' sines in every consumer: slower than direct
+        height, slope_x, slope_y = harmonic_sums(omega, phase, kx, ky, amplitude, xy[..., 0], xy[..., 1], time, 1)
+    else:  # eager: 1 + 2n exponentials per harmonic, not n² (docs/benchmarks.md, "Lattice sums")
+        height, slope_x, slope_y = lattice_harmonic_sums(omega, phase, kx, ky, amplitude, centre, basis, grid, time, 1)
     point = torch.cat((xy, height.unsqueeze(-1)), dim=-1)
     d1, d2 = point - tx.unsqueeze(1), rx.unsqueeze(1) - point
     r1, r2 = torch.linalg.vector_norm(d1, dim=-1), torch.linalg.vector_norm(d2, dim=-1)
