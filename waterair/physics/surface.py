@@ -70,13 +70,18 @@ def harmonic_sums(omega, phase, kx, ky, amplitude, x, y, t, order: int):
     harmonics (see :func:`compiled_harmonic_sums`); eager PyTorch runs it in chunks of seas of about
     :data:`EAGER_CHUNK_ELEMENTS` points × harmonics (rows are independent: the same values).
     """
-    inputs = (omega, phase, kx, ky, amplitude, x, y, t)
-    batch = x.shape[0]
     rows = max(1, EAGER_CHUNK_ELEMENTS // max(1, x[0].numel() * omega.shape[-1]))
+    return _in_chunks(functools.partial(_harmonic_sums, order=order), (omega, phase, kx, ky, amplitude, x, y, t), rows)
+
+
+def _in_chunks(sums, inputs: Sequence[torch.Tensor], rows: int):
+    """``sums(inputs)`` eagerly in chunks of ``rows`` seas (rows are independent: the same values), in one pass when
+    compiling or when the inputs do not all have one row per sea."""
+    batch = inputs[0].shape[0]
     if torch.compiler.is_compiling() or rows >= batch or any(v.shape[0] != batch for v in inputs):
-        return _harmonic_sums(inputs, order)
-    parts = [_harmonic_sums([v[i : i + rows] for v in inputs], order) for i in range(0, batch, rows)]
-    return tuple(torch.cat(sums) for sums in zip(*parts, strict=True))
+        return sums(inputs)
+    parts = [sums([v[i : i + rows] for v in inputs]) for i in range(0, batch, rows)]
+    return tuple(torch.cat(values) for values in zip(*parts, strict=True))
 
 
 def _harmonic_sums(inputs: Sequence[torch.Tensor], order: int):
@@ -112,13 +117,9 @@ def lattice_harmonic_sums(omega, phase, kx, ky, amplitude, centre, basis, grid, 
     ``[n, K]`` and the j-factors ``[K, n]``, in real arithmetic (docs/model.md §4.3). Eager PyTorch runs it in
     chunks of seas, as :func:`harmonic_sums`.
     """
-    inputs = (omega, phase, kx, ky, amplitude, centre, basis, t)
-    batch = omega.shape[0]
     rows = max(1, EAGER_CHUNK_ELEMENTS // (grid.shape[0] * omega.shape[-1]))
-    if torch.compiler.is_compiling() or rows >= batch or any(v.shape[0] != batch for v in inputs):
-        return _lattice_sums(inputs, grid, order)
-    parts = [_lattice_sums([v[i : i + rows] for v in inputs], grid, order) for i in range(0, batch, rows)]
-    return tuple(torch.cat(sums) for sums in zip(*parts, strict=True))
+    inputs = (omega, phase, kx, ky, amplitude, centre, basis, t)
+    return _in_chunks(functools.partial(_lattice_sums, grid=grid, order=order), inputs, rows)
 
 
 def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int):
