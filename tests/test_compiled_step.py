@@ -6,16 +6,17 @@ point within the solver tolerance: the comparison allows 1e-4 relative. Where th
 left the receiver (I ~ 1e-7), its Gaussian tail turns that into a per-mille change of I, which the
 observed log-intensity feature shows as up to ~1e-4 absolute.
 
-What inductor compiles is checked in parts, each test compiling its own graphs (none relies on another's
-compile, whatever the order), each graph as small as its code allows: the compile, not the rollout, is the
-time. One environment compiles the whole step: the observation presets are subsets of one observation with
-every extra (each part is built by its own code whichever preset asks for it), read through the realistic
-sensor (noise, latency, saturation, gating) with residual actions on the quadrant tracker and the training
-defaults' per-link draws, on the paper's sea and single path, whose exact point needs the finishing graphs
-(one Newton iteration in the step and two at a time in the finishing, so that links are finished on most
-steps). The full channel's two models (the ray tube on the paper's sea, the two-scale lattice on the
-defaults') differ from it only in their light and reception, compiled on their own; that an environment on
-the defaults' channel traces into one step graph is the evaluation tests' below.
+What inductor compiles is checked in parts, each test compiling one graph of its own (none relies on another's
+compile, whatever the order), each as small as its code allows: the compile, not the rollout, is the time. One
+environment is stepped compiled and eagerly, compiling in turn its step, its dense finishing and its concluding
+graph, the others eager: the observation presets are subsets of one observation with every extra (each part
+is built by its own code whichever preset asks for it), read through the realistic sensor (noise, latency,
+saturation, gating) with residual actions on the quadrant tracker and the training defaults' per-link draws,
+on the paper's sea and single path, whose exact point needs the finishing (one Newton iteration in the step
+and two at a time in the finishing, so that links are finished on most steps). The full channel's two models
+(the ray tube on the paper's sea, the two-scale lattice on the defaults') differ from it only in their light
+and reception, each compiled on its own; that an environment on the defaults' channel traces into one step
+graph is the evaluation tests' below.
 """
 
 import functools
