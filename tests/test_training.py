@@ -20,7 +20,6 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 
 import waterair.training.checkpoint as checkpoint_module
 from waterair.cli import training
-from waterair.cli.training import summary
 from waterair.envs.config import EnvConfig
 from waterair.evaluation.policies import load_policy
 from waterair.evaluation.runner import compare_policies
@@ -169,7 +168,7 @@ def test_closing_summary_prints_the_links_outage_and_ber_beside_the_ratio(tmp_pa
     for label, ratio in (("agent", 0.9), ("flat_snell", 0.7), ("straight_facing", 0.6), ("aoa_tracker", 0.89)):
         metrics.update({f"{label}/ratio_to_ub": ratio, f"{label}/outage": 0.0125, f"{label}/ber": 3.1e-4})
     metrics["agent/rate"] = 7.9e7
-    text = summary(compose_cfg("link.power_w=0.2"), tmp_path, metrics, 61.0)
+    text = training.summary(compose_cfg("link.power_w=0.2"), tmp_path, metrics, 61.0)
     line = next(line for line in text.splitlines() if line.startswith("Its link"))
     assert line == (
         "Its link (10 Mbit/s OOK, 200 mW): outage 1.25% of the steps, mean BER 0.00031, mean rate at the FEC "
