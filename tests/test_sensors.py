@@ -12,6 +12,7 @@ from waterair.envs.baselines import FlatSeaSnell
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import AoATracker, IntensityDither
 from waterair.envs.env import WaterAirEnv
+from waterair.envs.noise import stream_keys
 from waterair.envs.sensors import PACKET_PARTS, Sensor, intensity_feature, intensity_from_feature
 
 SMALL = {"n_freq": 16, "n_dir": 8, "seed": 3, **PAPER_PHYSICS}  # calibrated on the paper's sea and channel
@@ -70,11 +71,12 @@ def test_noise_spread_matches_the_configuration():
     count = 100_000
     sensor = Sensor(0, 0.05, 0.002, None, 0.001, 0.0, 0.17, torch.Generator().manual_seed(0))
     ones = torch.ones(count, dtype=torch.float64)
-    noise = sensor.draw(count, torch.float64, torch.device("cpu"))
+    keys = stream_keys(count, 1)
+    noise = sensor.draw(keys, torch.float64, torch.device("cpu"))
     relative = sensor.intensity(ones, noise) - 1.0  # relative 0.05 and floor 0.002 add in quadrature at I = 1
     assert relative.std().item() == pytest.approx(math.hypot(0.05, 0.002), rel=0.05)
     floor_only = Sensor(0, 0.0, 0.002, None, 0.0, 0.0, 0.17, torch.Generator().manual_seed(1))
-    floor_noise = floor_only.draw(count, torch.float64, torch.device("cpu"))
+    floor_noise = floor_only.draw(keys, torch.float64, torch.device("cpu"))
     assert (floor_only.intensity(10 * ones, floor_noise) - 10).std().item() == pytest.approx(0.002, rel=0.05)
     lit = torch.ones(count, dtype=torch.bool)
     reading, valid = sensor.spot(torch.zeros(count, 2, dtype=torch.float64), lit, ones, noise)
@@ -82,7 +84,7 @@ def test_noise_spread_matches_the_configuration():
     expected = 0.001 / math.tan(0.17)  # 1 mrad of angle, in spot units
     assert reading.std(0).tolist() == pytest.approx([expected, expected], rel=0.05)
     saturating = Sensor(0, 0.0, 0.0, 4.0, 0.0, 0.0, 0.17, torch.Generator())
-    assert saturating.draw(2, torch.float32, torch.device("cpu")) is None  # noiseless: draws nothing
+    assert saturating.draw(keys[:2], torch.float32, torch.device("cpu")) is None  # noiseless: draws nothing
     assert saturating.intensity(torch.tensor([1.0, 7.0]), None).tolist() == [1.0, 4.0]
 
 

@@ -15,6 +15,7 @@ from waterair.envs import draws, kernel
 from waterair.envs.config import EnvConfig
 from waterair.envs.frames import FrameStack
 from waterair.envs.kernel import MEASUREMENT_KEYS, SURFACE_KEYS, StepConstants
+from waterair.envs.noise import stream_keys
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import Sensor
 from waterair.envs.stepper import Stepper
@@ -97,6 +98,7 @@ class WaterAirEnv(EnvBase):
         self._channel_generator = torch.Generator()
         self._set_seed(config.seed)
         self.sensor = Sensor(**config.sensing, half_fov=self.optics.half_fov, generator=self._sensor_generator)
+        self._noise_keys = stream_keys(config.num_envs, config.replicas)
         self.constants = StepConstants.of(config, self.sensor, self.reward_fn, self.channel)
         self.stepper = Stepper(
             self.constants, config.solver, config.compile_kernel, self._channel_generator, device=self.device
@@ -142,7 +144,7 @@ class WaterAirEnv(EnvBase):
                 f"action contains NaN (links {bad[:8]}{'…' if len(bad) > 8 else ''}); actions must be finite"
             )
         action = action.to(self.float_dtype).clamp(-1.0, 1.0)
-        noise = self.sensor.draw(self.batch_size[0], self.float_dtype, self.device)
+        noise = self.sensor.draw(self._noise_keys, self.float_dtype, self.device)
         new, outputs = self.stepper(self.surface, self._full_state(), action, noise)
         self.state.update(new)
         self.measurement = {key: outputs[key] for key in MEASUREMENT_KEYS}
@@ -343,7 +345,7 @@ class WaterAirEnv(EnvBase):
         )
         upright = torch.zeros(rows.numel(), 2, device=self.device, dtype=dtype)
         tilts = {"tx_tilt": upright, "rx_tilt": upright}
-        noise = self.sensor.draw(rows.numel(), dtype, self.device)
+        noise = self.sensor.draw(self._noise_keys[rows.cpu()], dtype, self.device)
         ends = LinkEnds(tx, rx, flat, pointing(upright, up=True))
         light = self.stepper.reset_light(self.surface[rows], ends, prepared, path, zero)
         measurement, packet, stored, _, feature = kernel.record(

@@ -18,6 +18,7 @@ from copy import copy as shallow_copy
 
 import torch
 
+from waterair.envs.noise import draw_nonce, normals
 from waterair.physics.optics import Scalar, traced, transverse_frame, unit_vector
 
 PACKET_PARTS = ("tx_pointing", "rx_pointing", "intensity", "spot", "spot_valid", "history")
@@ -108,7 +109,7 @@ class Sensor:
         spot_noise_rad: standard deviation of each spot component, as an angle (rad).
         spot_threshold: measured I below which the spot reads nothing (``spot_valid`` 0, spot 0).
         half_fov: receiver half field of view ω_A (rad), the spot's scale.
-        generator: the CPU generator of the noise (its own, so that noise never shifts the seas).
+        generator: the CPU generator of the readings' nonces (its own, so that noise never shifts the seas).
     """
 
     def __init__(
@@ -142,20 +143,18 @@ class Sensor:
             setattr(copy, name, traced(getattr(self, name), device))
         return copy
 
-    def draw(self, count: int, dtype: torch.dtype, device: torch.device) -> torch.Tensor | None:
-        """Standard normal draws ``[count, 4]`` for one reading of ``count`` links, or None if noiseless.
+    def draw(self, keys: torch.Tensor, dtype: torch.dtype, device: torch.device) -> torch.Tensor | None:
+        """Standard normal draws ``[n, 4]`` for one reading of the links of stream ``keys`` ``[n]`` (CPU int64,
+        :func:`waterair.envs.noise.stream_keys`), or None if noiseless.
 
-        Columns 0-1 feed the intensity noise, 2-3 the spot noise; a source that is off draws nothing.
+        Columns 0-1 feed the intensity noise, 2-3 the spot noise; a source that is off reads zeros. One nonce is
+        drawn from the generator per reading, so a link's noise depends on its key and the reading's count alone.
         """
         if not (self.noisy_intensity or self.noisy_spot):
             return None
-        columns = []
-        for on in (self.noisy_intensity, self.noisy_spot):
-            if on:
-                columns.append(torch.randn(count, 2, generator=self.generator, dtype=torch.float64))
-            else:
-                columns.append(torch.zeros(count, 2, dtype=torch.float64))
-        return torch.cat(columns, dim=-1).to(device=device, dtype=dtype)
+        draws = normals(keys, draw_nonce(self.generator), 4)
+        on = torch.tensor([self.noisy_intensity] * 2 + [self.noisy_spot] * 2)
+        return torch.where(on, draws, 0.0).to(device=device, dtype=dtype)
 
     def intensity(self, true: torch.Tensor, noise: torch.Tensor | None) -> torch.Tensor:
         """Measured intensity ``[n]``: I (1 + σ_rel n1) + σ_floor n2, clipped to [0, saturation]."""

@@ -43,7 +43,8 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
 
     The members run as replicas of one environment seeded with ``seed``, greedily (no exploration
     noise), over ``points`` (wind m/s, offset ratio, azimuth deg) × ``realisations`` links for
-    ``steps`` steps.
+    ``steps`` steps. The members read common sensor noise too (a link's, :mod:`waterair.envs.noise`), so
+    that each scores the same alone and beside others.
     """
     links = len(points) * realisations
     winds, offsets, azimuths = zip(*points, strict=True)
