@@ -15,7 +15,7 @@ from conftest import ROOT
 from waterair.core import validation
 from waterair.envs.config import EnvConfig
 from waterair.envs.link import link_budget
-from waterair.physics.channel import LinkGeometry, Transceiver
+from waterair.physics.channel import Beacon, LinkGeometry, Transceiver
 from waterair.physics.sea import ElfouhailySea, JonswapSea
 
 NUMBER = r"[-+]?(?:\d+(?:\.\d*)?(?:e[-+]?\d+)?|π/2)"
@@ -35,7 +35,12 @@ def documented_ranges() -> dict[str, tuple[float, float, bool, bool]]:
 
 
 RANGES = documented_ranges()
-GROUPS = {"sea": (JonswapSea, ElfouhailySea), "geometry": (LinkGeometry,), "optics": (Transceiver,)}
+GROUPS = {
+    "sea": (JonswapSea, ElfouhailySea),
+    "geometry": (LinkGeometry,),
+    "optics": (Transceiver,),
+    "beacon": (Beacon,),
+}
 
 
 def field_type(key: str) -> str:

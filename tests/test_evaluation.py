@@ -120,7 +120,9 @@ def test_sensing_decides_whose_sensor_a_learned_policy_and_its_controllers_use(t
     ((_, config, _),) = trained.learned
     assert config.latency_steps == 1 and config.intensity_noise == 0.05 and trained.env.latency_steps == 0
     sensed = [(c.latency_steps, [label for label, _ in members]) for c, members in trained.groups]
-    late = ["aoa_tracker (1-step latency, noisy, saturating)", "intensity_dither (1-step latency, noisy, saturating)"]
+    late = [
+        f"{name} (1-step latency, noisy, saturating)" for name in ("beacon_tracker", "aoa_tracker", "intensity_dither")
+    ]
     assert (1, late) in sensed and (1, [trained.policies[0].label]) in sensed
     scenario = prepare(eval_cfg(f"run={tiny_run}", "sensing=scenario"))
     assert scenario.learned[0][1].latency_steps == 0
@@ -140,10 +142,13 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert data["schema_version"] == 4
     assert data["link"]["power_w"] == 0.05 and data["link"]["fec_power"] == pytest.approx(3.16e-8, rel=0.01)
     labels = [p["label"] for p in data["policies"]]
-    references = ["tracking", "aoa_tracker", "intensity_dither", "flat_snell", "straight_facing", "no_alignment"]
+    references = ["tracking", "beacon_tracker", "aoa_tracker", "intensity_dither", "flat_snell", "straight_facing"]
+    references.append("no_alignment")
     # the run trained with the realistic sensor (train.py's default): the classical controllers also
     # run with its sensing, beside it, while the scenario's sensor stays ideal for the references
-    realistic = [f"{name} (1-step latency, noisy, saturating)" for name in ("aoa_tracker", "intensity_dither")]
+    realistic = [
+        f"{name} (1-step latency, noisy, saturating)" for name in ("beacon_tracker", "aoa_tracker", "intensity_dither")
+    ]
     assert labels[0] == "upper_bound" and labels[2:] == references + realistic
     assert data["policies"][1]["kind"] == "learned" and data["policies"][1]["frames"] == 800
     points = {"S1": 1, "S2": 2, "S3": 2, "S4": 2}
@@ -282,7 +287,7 @@ def test_every_policy_sees_the_same_seas_and_stays_under_the_upper_bound(tiny_ru
     spot = write_policy(tmp_path / "spot.pt", observation_size=10, extras=("spot",))
     result = evaluate(eval_cfg(f"run={tiny_run}", f"checkpoint={spot}"), progress=lambda _: None)
     kinds = [p["kind"] for p in result.policies]
-    assert kinds == ["bound", "learned", "learned"] + ["baseline"] * (6 + 2)  # + the controllers with the run's sensing
+    assert kinds == ["bound", "learned", "learned"] + ["baseline"] * (7 + 3)  # + the controllers with the run's sensing
     for scenario, traces in result.traces.items():
         # clamping only raises a bound: the search's own is the least over the policies
         searched_bound = torch.stack([trace["gain_upper_bound"] for trace in traces.values()]).amin(0)
@@ -315,10 +320,10 @@ def test_one_batch_for_all_policies_gives_the_same_numbers_as_one_rollout_each(t
         for together in (True, False)
     ]
     # one progress line per rollout, each with its own duration: S1 and S2 × (the baselines and
-    # controllers together, the policy with its own observation), or S1 and S2 × 7 policies one at a time
-    assert len(lines[True]) == 2 * 2 and len(lines[False]) == 2 * 7
+    # controllers together, the policy with its own observation), or S1 and S2 × 8 policies one at a time
+    assert len(lines[True]) == 2 * 2 and len(lines[False]) == 2 * 8
     assert all(re.search(r": .+ in \d+ s$", line) for line in lines[True] + lines[False]), lines
-    assert len(results[0].rows) == len(results[1].rows) == (1 + 2) * 8
+    assert len(results[0].rows) == len(results[1].rows) == (1 + 2) * 9
     for batched, alone in zip(results[0].rows, results[1].rows, strict=True):
         assert batched["policy"] == alone["policy"]
         for name in METRICS:
@@ -432,6 +437,10 @@ def test_latest_run_is_the_newest_checkpoint(tmp_path):
         latest_run(tmp_path / "empty")
 
 
+BEACON_KEYS = ("beacon", "beacon_noise_rad", "beacon_threshold")
+"""The env keys of the drone's beacon (docs/model.md §4.9)."""
+
+
 @pytest.mark.parametrize("name", list(SHIPPED))
 def test_each_shipped_policy_loads_matches_its_metrics_and_has_the_documented_config(name):
     path = shipped_policy(name)
@@ -442,6 +451,9 @@ def test_each_shipped_policy_loads_matches_its_metrics_and_has_the_documented_co
     trained = OmegaConf.to_container(policy.config, resolve=True)
     if "link" not in trained:  # the link budget came after `paper` was trained: its config has none
         documented.pop("link")
+    for key in BEACON_KEYS:  # the beacon came after every shipped policy: their sensors read none
+        assert key not in trained["env"]
+        documented["env"].pop(key)
     # whether to compile and on how many threads change the speed, not the policy: they were trained compiled,
     # before the threads key, and the default is now auto for both
     for config in (trained, documented):

@@ -3,7 +3,8 @@
 The physics is held as the physics' own objects, one nested group each: the sea (``env.sea.wind``,
 a :class:`~waterair.physics.sea.JonswapSea` or :class:`~waterair.physics.sea.ElfouhailySea`), the
 link's geometry (``env.geometry.offset_ratio``, :class:`~waterair.physics.channel.LinkGeometry`) and
-the optics (``env.optics.aperture_diameter``, :class:`~waterair.physics.channel.Transceiver`). Each
+the optics (``env.optics.aperture_diameter``, :class:`~waterair.physics.channel.Transceiver`) and the
+drone's beacon (``env.beacon.divergence``, :class:`~waterair.physics.channel.Beacon`). Each
 physics value is validated once, where it is defined; the interface keys (``env.dt``, ...) are
 validated here. Every error names the key path (``env.sea.wind``), the value and the allowed range;
 docs/environment.md lists each key with its unit, default and range. The flat keys of the first
@@ -24,6 +25,7 @@ from waterair.envs.legacy import DEFAULT_SPECTRUM, SHARED_SEA_KEYS, as_mapping, 
 from waterair.physics.channel import (
     LATTICE_NODES,
     LATTICE_SPAN,
+    Beacon,
     ChannelModel,
     LinkGeometry,
     LocalEstimate,
@@ -34,8 +36,11 @@ from waterair.physics.channel import (
 from waterair.physics.sea import SeaState, sea_state
 
 ACTION_MODES = ("absolute", "delta", "residual")
-RESIDUAL_BASES = ("flat_snell", "aoa_tracker")
-"""What residual actions correct: flat-sea Snell pointing, or the quadrant-detector back-projection."""
+RESIDUAL_BASES = ("flat_snell", "aoa_tracker", "beacon_tracker")
+"""What residual actions correct: flat-sea Snell pointing, the quadrant-detector back-projection, or each end
+along its own reading (the beacon at the transmitter, the spot at the receiver)."""
+BASE_NEEDS = {"aoa_tracker": ("spot", "spot_valid"), "beacon_tracker": ("spot", "spot_valid", "beacon", "beacon_valid")}
+"""The observation parts each residual base reads."""
 PER_LINK = {
     "wind": (0.0, 60.0, "m/s"),
     "offset": (0.0, 10.0, ""),
@@ -43,7 +48,7 @@ PER_LINK = {
     "wind_direction": (-360.0, 360.0, "deg"),
 }
 """Quantities each link may draw from ``<name>_range`` or take from ``<name>_values``: (low, high, unit)."""
-OBSERVATION_EXTRAS = ("spot", "spot_valid", "history", "action_history", "geometry")
+OBSERVATION_EXTRAS = ("spot", "spot_valid", "beacon", "beacon_valid", "history", "action_history", "geometry")
 """Opt-in observation parts, in the order they follow the paper's 8 (docs/environment.md)."""
 SENSOR_KEYS = (
     "latency_steps",
@@ -52,6 +57,8 @@ SENSOR_KEYS = (
     "intensity_saturation",
     "spot_noise_rad",
     "spot_threshold",
+    "beacon_noise_rad",
+    "beacon_threshold",
 )
 """The sensing keys (presets: env/sensor=ideal|ideal_late|realistic)."""
 DTYPES = ("float32", "float64")
@@ -74,6 +81,7 @@ class EnvConfig:
     sea: SeaState = sea_state(DEFAULT_SPECTRUM)  # env.sea.*; presets env/spectrum=elfouhaily|jonswap, env/sea=...
     geometry: LinkGeometry = LinkGeometry()  # env.geometry.*: where the ends are (docs/model.md §0)
     optics: Transceiver = Transceiver()  # env.optics.*: the ends' optics (docs/model.md §4-§5)
+    beacon: Beacon = Beacon()  # env.beacon.*: the drone's beacon and the transmitter's detector (docs/model.md §4.9)
     # channel (docs/model.md §4)
     channel: str = "full"  # full | single_path (the paper's) | montecarlo | counting (the last two: slow)
     lattice_nodes: int = LATTICE_NODES  # full channel on a two-scale sea: nodes per axis of the surface lattice
@@ -86,7 +94,7 @@ class EnvConfig:
     max_steps: int = 500  # steps per episode (truncation)
     action_mode: str = "absolute"  # absolute | delta | residual (on top of residual_base's pointing)
     residual_deg: float = 15.0  # residual mode: the largest deviation from the base controller's pointing
-    residual_base: str = "flat_snell"  # residual mode: flat_snell | aoa_tracker (needs spot and spot_valid)
+    residual_base: str = "flat_snell"  # residual mode: flat_snell | aoa_tracker | beacon_tracker (BASE_NEEDS)
     max_tilt_deg: float = 45.0  # largest pointing tilt from vertical
     max_slew_deg_s: float = 60.0  # delta mode: largest tilt change per second
     observation_extras: tuple[str, ...] = ()  # any of OBSERVATION_EXTRAS; presets: env/observation=
@@ -101,6 +109,8 @@ class EnvConfig:
     intensity_saturation: float | None = None  # largest measurable intensity I, or null
     spot_noise_rad: float = 0.0  # standard deviation of each quadrant-detector component, as an angle (rad)
     spot_threshold: float = 0.0  # measured intensity below which the detector reads no spot
+    beacon_noise_rad: float = 0.0  # standard deviation of each component of the beacon reading, as an angle (rad)
+    beacon_threshold: float = 0.0  # beacon intensity (of its calm-sea value) below which it reads nothing
     # domain randomisation: per-link values drawn uniformly at every reset, or None
     wind_range: tuple[float, float] | None = None  # m/s
     offset_range: tuple[float, float] | None = None  # offset ratio
@@ -123,6 +133,7 @@ class EnvConfig:
         object.__setattr__(self, "sea", _physics("sea", self.sea, SeaState, _build_sea))
         object.__setattr__(self, "geometry", _physics("geometry", self.geometry, LinkGeometry, LinkGeometry))
         object.__setattr__(self, "optics", _physics("optics", self.optics, Transceiver, Transceiver))
+        object.__setattr__(self, "beacon", _physics("beacon", self.beacon, Beacon, Beacon))
         check_int("env.num_envs", self.num_envs, 1, 2**24)
         if not isinstance(self.compile_kernel, bool):  # a truthy 'auto' would compile silently
             raise ValueError(
@@ -145,11 +156,13 @@ class EnvConfig:
             check_choice("env.observation_extras", extra, OBSERVATION_EXTRAS)
         check_int("env.history_length", self.history_length, 1, 1000)
         check_choice("env.residual_base", self.residual_base, RESIDUAL_BASES)
-        needs = {"spot", "spot_valid"} - set(self.observation_extras)
-        if self.action_mode == "residual" and self.residual_base == "aoa_tracker" and needs:
+        needs = set(BASE_NEEDS.get(self.residual_base, ())) - set(self.observation_extras)
+        if self.action_mode == "residual" and needs:
+            preset = "beacon" if "beacon" in BASE_NEEDS[self.residual_base] else "quadrant"
             raise ValueError(
-                f"env.residual_base = 'aoa_tracker' needs the spot in the observation (env.observation_extras "
-                f"lacks {', '.join(sorted(needs))}); use env/observation=quadrant or env.residual_base=flat_snell"
+                f"env.residual_base = {self.residual_base!r} needs its readings in the observation "
+                f"(env.observation_extras lacks {', '.join(sorted(needs))}); use env/observation={preset} or "
+                "env.residual_base=flat_snell"
             )
         check_int("env.frames", self.frames, 1, 64)
         check_int("env.latency_steps", self.latency_steps, 0, 1000)
@@ -159,6 +172,8 @@ class EnvConfig:
             check_range("env.intensity_saturation", self.intensity_saturation, 0.0, 1e6, low_open=True)
         check_range("env.spot_noise_rad", self.spot_noise_rad, 0.0, 1.0, unit="rad")
         check_range("env.spot_threshold", self.spot_threshold, 0.0, 1e6)
+        check_range("env.beacon_noise_rad", self.beacon_noise_rad, 0.0, 1.0, unit="rad")
+        check_range("env.beacon_threshold", self.beacon_threshold, 0.0, 1e6)
         check_int("env.replicas", self.replicas, 1, self.num_envs)
         if self.num_envs % self.replicas:
             raise ValueError(
@@ -264,6 +279,13 @@ class EnvConfig:
         return {key: getattr(self, key) for key in SENSOR_KEYS}
 
     @property
+    def senses_beacon(self) -> bool:
+        """Whether the step reads the beacon: its reading is observed, or the residual base follows it."""
+        return "beacon" in self.observation_extras or (
+            self.action_mode == "residual" and self.residual_base == "beacon_tracker"
+        )
+
+    @property
     def max_tilt(self) -> float:
         """sin(max_tilt): the largest norm of a tilt vector."""
         return math.sin(math.radians(self.max_tilt_deg))
@@ -273,12 +295,15 @@ class EnvConfig:
         """Where each named part sits in the observation vector, in order (docs/environment.md).
 
         ``tx_pointing`` (3), ``rx_pointing`` (3), ``intensity`` (1), ``time`` (1), then the opt-in
-        extras in the order of :data:`OBSERVATION_EXTRAS`: ``spot`` (2), ``spot_valid`` (1),
-        ``history`` (``history_length``), ``action_history`` (4 × ``history_length``), ``geometry`` (2).
+        extras in the order of :data:`OBSERVATION_EXTRAS`: ``spot`` (2), ``spot_valid`` (1), ``beacon`` (2),
+        ``beacon_valid`` (1), ``history`` (``history_length``), ``action_history`` (4 × ``history_length``),
+        ``geometry`` (2).
         """
         extra_sizes = {
             "spot": 2,
             "spot_valid": 1,
+            "beacon": 2,
+            "beacon_valid": 1,
             "history": self.history_length,
             "action_history": 4 * self.history_length,
             "geometry": 2,
@@ -306,7 +331,7 @@ class EnvConfig:
         return self.dt * self.max_steps
 
 
-PHYSICS = ("sea", "geometry", "optics")
+PHYSICS = ("sea", "geometry", "optics", "beacon")
 """The env's physics groups: each a physics object, built from a mapping of its keys."""
 
 

@@ -13,7 +13,42 @@ import math
 import torch
 
 from waterair.envs.baselines import FlatSeaSnell, PointingPolicy
-from waterair.envs.sensors import back_projection, intensity_from_feature, read_parked
+from waterair.envs.sensors import back_projection, beacon_pointing, intensity_from_feature, read_parked
+
+
+class BeaconTracker(PointingPolicy):
+    """Each end along its own reading: the terminals sense each other (docs/model.md §4.9).
+
+    Assumes a beacon on the drone and a quadrant detector for it on the transmitter's gimbal, read with the
+    transmitter's pointing, and the drone's quadrant detector for the uplink (as :class:`AoATracker`), both
+    readings reaching the controller in the packet; the detectors' fields of view from their datasheets.
+
+    * Transmitter: where the beacon's light comes from, the measured beacon arrival reversed: by reciprocity
+      the direction in which the uplink leaves toward the drone, one reading late.
+    * Receiver: along the measured incoming direction, as the quadrant tracker.
+    * An end with no reading (no light in its detector's field of view, or below its threshold): flat-sea
+      Snell for that end. A reading taken with the gimbals parked at the reset is used as any other (the
+      quadrant tracker waits for its own): the beacon's beam is wide, so the parked drone still lights the
+      transmitter, and its centroid leans less toward the beacon's axis than the spot toward the laser's.
+    """
+
+    name = "beacon_tracker"
+    required_extras = ("spot", "spot_valid", "beacon", "beacon_valid")
+
+    def directions(self, tensordict):
+        flat = FlatSeaSnell.directions(self, tensordict)
+        observation, part = tensordict.get("observation"), self.env.observation_part
+        beacon = (
+            part(observation, "tx_pointing"),
+            part(observation, "beacon"),
+            part(observation, "beacon_valid")[:, 0] > 0.5,
+        )
+        spot = (
+            part(observation, "rx_pointing"),
+            part(observation, "spot"),
+            part(observation, "spot_valid")[:, 0] > 0.5,
+        )
+        return beacon_pointing(beacon, spot, flat, self.env.config.beacon.half_fov, self.env.optics.half_fov)
 
 
 class AoATracker(PointingPolicy):
@@ -159,7 +194,7 @@ def parked_reading(env, observation: torch.Tensor) -> torch.Tensor:
     return read_parked(steps, env.config.latency_steps)
 
 
-CONTROLLERS = {cls.name: cls for cls in (AoATracker, IntensityDither)}
+CONTROLLERS = {cls.name: cls for cls in (BeaconTracker, AoATracker, IntensityDither)}
 """Classical controllers by name, the one that senses more first."""
 
 

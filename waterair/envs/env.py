@@ -48,13 +48,15 @@ class WaterAirEnv(EnvBase):
     feature (log10(I + 1e-6) + 6) / 6 (1), relative time t / T_episode (1). Opt-in extras, in this
     order: ``spot`` (2: where the arrival spot sits on a quadrant detector, the arriving ray's
     direction in the receiver frame divided by tan ω_A), ``spot_valid`` (1: 0 with no reading, the
-    spot then 0), ``history`` (``history_length`` previous intensity features, newest first),
+    spot then 0), ``beacon`` (2: where the drone's beacon arrives on the transmitter's detector, its
+    direction in the transmitter frame over tan of the detector's half field of view), ``beacon_valid``
+    (1), ``history`` (``history_length`` previous intensity features, newest first),
     ``action_history`` (the last ``history_length`` actions, newest first) and ``geometry`` (2: the
     drone's horizontal position relative to the transmitter over tx_depth + rx_height).
     ``EnvConfig.observation_layout`` names where each part sits. With ``frames`` = k > 1 the
     observation is the last k such frames side by side, newest first (a reset repeats its first).
 
-    **Sensing**: pointing, intensity, spot and history come in a measurement packet that reaches
+    **Sensing**: pointing, intensity, spot, beacon and history come in a measurement packet that reaches
     the observation ``latency_steps`` late, with the sensor's noise, saturation and gating
     (:mod:`waterair.envs.sensors`); time, action history and geometry are current. The default
     (ideal) sensor reports the true values at once.
@@ -97,7 +99,12 @@ class WaterAirEnv(EnvBase):
         self._sensor_generator = torch.Generator()
         self._channel_generator = torch.Generator()
         self._set_seed(config.seed)
-        self.sensor = Sensor(**config.sensing, half_fov=self.optics.half_fov, generator=self._sensor_generator)
+        self.sensor = Sensor(
+            **config.sensing,
+            half_fov=self.optics.half_fov,
+            generator=self._sensor_generator,
+            beacon_half_fov=config.beacon.half_fov,
+        )
         self._noise_keys = stream_keys(config.num_envs, config.replicas)
         self.constants = StepConstants.of(config, self.sensor, self.reward_fn, self.channel)
         self.stepper = Stepper(

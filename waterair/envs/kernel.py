@@ -28,12 +28,13 @@ from waterair.envs.sensors import (
     PACKET_PARTS,
     Sensor,
     back_projection,
+    beacon_pointing,
     intensity_feature,
     packet_sizes,
     read_parked,
     spot_position,
 )
-from waterair.physics.channel import ChannelModel, LightSamples, LinkEnds, Transceiver, pointing
+from waterair.physics.channel import Beacon, ChannelModel, LightSamples, LinkEnds, Transceiver, pointing, read_beacon
 from waterair.physics.optics import traced, unit_vector
 from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path, near_calm_point
 from waterair.physics.paths.fixed import fixed_newton_terms
@@ -117,6 +118,8 @@ class StepConstants:
     replicas: int = 1
     """The batch's copies of its links (``env.replicas``): the channel computes what does not depend on the
     pointing once per link of them."""
+    beacon: Beacon | None = None
+    """The drone's beacon where the step reads it (``EnvConfig.senses_beacon``); None: its reading stays 0."""
 
     @classmethod
     def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward, channel: ChannelModel) -> StepConstants:
@@ -138,6 +141,7 @@ class StepConstants:
             vertical_distance=config.geometry.tx_depth + config.geometry.rx_height,
             channel=channel,
             replicas=config.replicas,
+            beacon=config.beacon if config.senses_beacon else None,
         )
 
     def traced(self, device: torch.device) -> StepConstants:
@@ -192,6 +196,16 @@ def base_tilts(c: StepConstants, state: dict) -> torch.Tensor:
         return flat_tilts(point, tx, rx)
     delivered = unpack(state["packets"][:, -1])
     flat = unit_vector(point - tx), unit_vector(point - rx)
+    if c.residual_base == "beacon_tracker":
+        assert c.beacon is not None  # EnvConfig.senses_beacon: a beacon base reads the beacon
+        tx_dir, rx_dir = beacon_pointing(
+            (delivered["tx_pointing"], delivered["beacon"], delivered["beacon_valid"][:, 0] > 0.5),
+            (delivered["rx_pointing"], delivered["spot"], delivered["spot_valid"][:, 0] > 0.5),
+            flat,
+            c.beacon.half_fov,
+            c.optics.half_fov,
+        )
+        return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
     seen = (delivered["spot_valid"][:, 0] > 0.5) & ~read_parked(state["steps"], c.sensor.latency_steps)
     tx_dir, rx_dir = back_projection(delivered["rx_pointing"], delivered["spot"], seen, tx, rx, flat, c.optics.half_fov)
     return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
@@ -269,17 +283,32 @@ def record(
     seen = spot_position(received.spot_arrival, rx_dir, c.optics.half_fov)
     spot, spot_valid = c.sensor.spot(seen, received.lit, measured, noise)
     feature = intensity_feature(measured)
+    beacon, beacon_valid = read_beacon_packet(c, light, tx_dir, rx_dir, reference_gain, noise)
     packet = {
         "tx_pointing": tx_dir,
         "rx_pointing": rx_dir,
         "intensity": feature.unsqueeze(-1),
         "spot": spot,
         "spot_valid": spot_valid.unsqueeze(-1),
+        "beacon": beacon,
+        "beacon_valid": beacon_valid.unsqueeze(-1),
     }
     measurement = {**true, "intensity": intensity}
     tracked = path.valid if c.channel.needs_exact_point else near_calm_point(path, flat_point)
     stored = torch.where(tracked.unsqueeze(-1), path.point, flat_point)
     return Record(measurement, packet, stored, tracked, feature)
+
+
+def read_beacon_packet(c: StepConstants, light: LightSamples, tx_dir, rx_dir, reference_gain, noise):
+    """The transmitter's beacon reading ``[n, 2]`` (the incoming direction in the transmitter's frame over
+    tan of the detector's half field of view) and its validity ``[n]``; both 0 where the step reads no beacon."""
+    if c.beacon is None:
+        zero = torch.zeros_like(tx_dir[:, 0])
+        return torch.zeros_like(tx_dir[:, :2]), zero
+    seen = read_beacon(light, tx_dir, rx_dir, c.beacon, c.optics)
+    level = seen.gain / c.beacon.reference_gain(reference_gain, c.optics)
+    true = spot_position(-seen.incoming, tx_dir, c.beacon.half_fov)
+    return c.sensor.beacon(true, seen.lit, level, noise)
 
 
 def pack(packet: dict, history: torch.Tensor) -> torch.Tensor:
@@ -356,7 +385,7 @@ def misalignment(c: StepConstants, measurement: dict) -> torch.Tensor:
 
 
 def observe(c: StepConstants, state: dict) -> torch.Tensor:
-    """Every observation part ``[B, 13 + 5 · history_length]``, in the order of the full layout.
+    """Every observation part ``[B, 16 + 5 · history_length]``, in the order of the full layout.
 
     The delivered packet's parts, then the controller's own knowledge (time, action history,
     geometry), which is never late. An environment keeps the columns of the parts its layout asks

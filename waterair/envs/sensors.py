@@ -21,9 +21,16 @@ import torch
 from waterair.envs.noise import draw_nonce, normals
 from waterair.physics.optics import Scalar, traced, transverse_frame, unit_vector
 
-PACKET_PARTS = ("tx_pointing", "rx_pointing", "intensity", "spot", "spot_valid", "history")
+PACKET_PARTS = ("tx_pointing", "rx_pointing", "intensity", "spot", "spot_valid", "beacon", "beacon_valid", "history")
 """Observation parts that travel in the measurement packet, and so arrive ``latency_steps`` late."""
-TRACED_SETTINGS = ("intensity_noise", "intensity_noise_floor", "spot_noise", "spot_threshold")
+TRACED_SETTINGS = (
+    "intensity_noise",
+    "intensity_noise_floor",
+    "spot_noise",
+    "spot_threshold",
+    "beacon_noise",
+    "beacon_threshold",
+)
 """The :class:`Sensor` settings a compiled step reads as tensors (:meth:`Sensor.traced`)."""
 INTENSITY_EPS = 1e-6
 """Offset inside the observed intensity feature log10(I + ε), so that I = 0 maps to a finite value."""
@@ -90,9 +97,37 @@ def back_projection(
     return torch.where(use, unit_vector(sea_point - tx), fallback[0]), torch.where(use, toward_surface, fallback[1])
 
 
+def spot_direction(boresight: torch.Tensor, spot: torch.Tensor, half_fov: float) -> torch.Tensor:
+    """The unit incoming direction ``[n, 3]`` a reading ``spot`` ``[n, 2]``, read with ``boresight`` ``[n, 3]``
+    over tan ``half_fov``, stands for: the inverse of :func:`spot_position`."""
+    e1, e2 = transverse_frame(boresight)
+    return unit_vector(boresight + math.tan(half_fov) * (spot[:, :1] * e1 + spot[:, 1:] * e2))
+
+
+def beacon_pointing(
+    readings: tuple[torch.Tensor, torch.Tensor, torch.Tensor],
+    spots: tuple[torch.Tensor, torch.Tensor, torch.Tensor],
+    fallback: tuple[torch.Tensor, torch.Tensor],
+    beacon_half_fov: float,
+    half_fov: float,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Each end from its own latest reading: unit transmitter (up) and receiver (down) pointing ``[n, 3]``.
+
+    The transmitter points where the beacon's light comes from (``readings``: the transmitter's boresight, the
+    beacon reading and whether it is seen), reciprocity's answer one reading late; the receiver along the
+    measured uplink arrival (``spots``: the receiver's boresight, the spot and whether it is seen), as the
+    quadrant tracker's. An end without a reading takes its ``fallback`` (tx, rx).
+    """
+    tx_boresight, beacon, beacon_seen = readings
+    rx_boresight, spot, spot_seen = spots
+    tx = torch.where(beacon_seen.unsqueeze(-1), spot_direction(tx_boresight, beacon, beacon_half_fov), fallback[0])
+    rx = torch.where(spot_seen.unsqueeze(-1), spot_direction(rx_boresight, spot, half_fov), fallback[1])
+    return tx, rx
+
+
 def packet_sizes(history_length: int) -> tuple[int, ...]:
     """The widths of the parts of :data:`PACKET_PARTS` in one packet."""
-    return (3, 3, 1, 2, 1, history_length)
+    return (3, 3, 1, 2, 1, 2, 1, history_length)
 
 
 class Sensor:
@@ -110,6 +145,9 @@ class Sensor:
         spot_threshold: measured I below which the spot reads nothing (``spot_valid`` 0, spot 0).
         half_fov: receiver half field of view ω_A (rad), the spot's scale.
         generator: the CPU generator of the readings' nonces (its own, so that noise never shifts the seas).
+        beacon_noise_rad: standard deviation of each component of the transmitter's beacon reading (rad).
+        beacon_threshold: beacon intensity (G_B over its calm-sea value) below which it reads nothing.
+        beacon_half_fov: the beacon detector's half field of view (rad), the beacon reading's scale.
     """
 
     def __init__(
@@ -122,6 +160,9 @@ class Sensor:
         spot_threshold: float,
         half_fov: float,
         generator: torch.Generator,
+        beacon_noise_rad: float = 0.0,
+        beacon_threshold: float = 0.0,
+        beacon_half_fov: float = 0.17,
     ):
         self.latency_steps = latency_steps
         self.intensity_noise: Scalar = intensity_noise
@@ -129,10 +170,13 @@ class Sensor:
         self.intensity_saturation = intensity_saturation
         self.spot_noise: Scalar = spot_noise_rad / math.tan(half_fov)
         self.spot_threshold: Scalar = spot_threshold
+        self.beacon_noise: Scalar = beacon_noise_rad / math.tan(beacon_half_fov)
+        self.beacon_threshold: Scalar = beacon_threshold
         self.generator = generator
         # which noise sources are on: decided here, on the floats, so that a traced copy branches the same way
         self.noisy_intensity = bool(intensity_noise or intensity_noise_floor)
         self.noisy_spot = bool(spot_noise_rad)
+        self.noisy_beacon = bool(beacon_noise_rad)
 
     def traced(self, device: torch.device) -> Sensor:
         """This sensor as a compiled step takes it: its noise levels and spot threshold 0-dim float64 tensors on
@@ -144,16 +188,17 @@ class Sensor:
         return copy
 
     def draw(self, keys: torch.Tensor, dtype: torch.dtype, device: torch.device) -> torch.Tensor | None:
-        """Standard normal draws ``[n, 4]`` for one reading of the links of stream ``keys`` ``[n]`` (CPU int64,
+        """Standard normal draws ``[n, 6]`` for one reading of the links of stream ``keys`` ``[n]`` (CPU int64,
         :func:`waterair.envs.noise.stream_keys`), or None if noiseless.
 
-        Columns 0-1 feed the intensity noise, 2-3 the spot noise; a source that is off reads zeros. One nonce is
-        drawn from the generator per reading, so a link's noise depends on its key and the reading's count alone.
+        Columns 0-1 feed the intensity noise, 2-3 the spot noise, 4-5 the beacon reading's; a source that is off
+        reads zeros. One nonce is drawn from the generator per reading, so a link's noise depends on its key and
+        the reading's count alone.
         """
-        if not (self.noisy_intensity or self.noisy_spot):
+        if not (self.noisy_intensity or self.noisy_spot or self.noisy_beacon):
             return None
-        draws = normals(keys, draw_nonce(self.generator), 4)
-        on = torch.tensor([self.noisy_intensity] * 2 + [self.noisy_spot] * 2)
+        draws = normals(keys, draw_nonce(self.generator), 6)
+        on = torch.tensor([self.noisy_intensity] * 2 + [self.noisy_spot] * 2 + [self.noisy_beacon] * 2)
         return torch.where(on, draws, 0.0).to(device=device, dtype=dtype)
 
     def intensity(self, true: torch.Tensor, noise: torch.Tensor | None) -> torch.Tensor:
@@ -172,6 +217,17 @@ class Sensor:
         valid = lit & (measured_intensity >= self.spot_threshold)
         reading = true
         if self.noisy_spot and noise is not None:
-            reading = true + self.spot_noise * noise[:, 2:]
+            reading = true + self.spot_noise * noise[:, 2:4]
+        reading = torch.where(valid.unsqueeze(-1), reading, torch.zeros_like(reading))
+        return reading, valid.to(true.dtype)
+
+    def beacon(self, true: torch.Tensor, lit: torch.Tensor, intensity: torch.Tensor, noise):
+        """Beacon reading ``[n, 2]`` and its validity ``[n]`` (float 0/1) at the transmitter: the true reading
+        ``[n, 2]`` plus noise where the beacon's light is seen (``lit``) at ``intensity`` (G_B over its calm-sea
+        value) at or above the threshold, else 0."""
+        valid = lit & (intensity >= self.beacon_threshold)
+        reading = true
+        if self.noisy_beacon and noise is not None:
+            reading = true + self.beacon_noise * noise[:, 4:6]
         reading = torch.where(valid.unsqueeze(-1), reading, torch.zeros_like(reading))
         return reading, valid.to(true.dtype)

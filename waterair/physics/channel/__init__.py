@@ -16,9 +16,11 @@ Every model is a :class:`~.model.ChannelModel` (the interface, §4.7), chosen by
 
 Around them: :mod:`.light` (the light at the receiver as weighted rays, and what a pointing makes of
 it: gain, upper bound, centroid, for every model), :mod:`.facets` (the facet a ray needs and the
-aperture's blur), :mod:`.geometry` (where the ends are and what optics they carry).
+aperture's blur), :mod:`.geometry` (where the ends are and what optics they carry), :mod:`.beacon` (the
+drone's beacon, read at the transmitter through the same light reversed).
 """
 
+from waterair.physics.channel.beacon import BEACON_POINTINGS, Beacon, BeaconReading, read_beacon
 from waterair.physics.channel.geometry import LinkGeometry, Transceiver, pointing
 from waterair.physics.channel.lattice import LATTICE_NODES, LATTICE_SPAN, TwoScale, lattice_shape, two_scale_light
 from waterair.physics.channel.light import (
@@ -46,7 +48,10 @@ from waterair.physics.channel.registry import CHANNELS, channel_model
 from waterair.physics.channel.single_path import ChannelGain, SinglePath, calm_sea_gain, calm_sea_gains, channel_gain
 
 __all__ = [
+    "BEACON_POINTINGS",
     "CHANNELS",
+    "Beacon",
+    "BeaconReading",
     "LATTICE_NODES",
     "LATTICE_SPAN",
     "ChannelGain",
@@ -76,6 +81,7 @@ __all__ = [
     "pointing",
     "ray_tube_factor",
     "ray_tube_light",
+    "read_beacon",
     "receive",
     "received_gain",
     "standard_error",

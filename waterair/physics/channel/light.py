@@ -145,8 +145,8 @@ def upper_bound(
     """
     weight = light.weight
     mean = (
-        _direction(weight, light.departure, light.departure[:, 0]),
-        _direction(weight, -light.arrival, -light.arrival[:, 0]),
+        weighted_direction(weight, light.departure, light.departure[:, 0]),
+        weighted_direction(weight, -light.arrival, -light.arrival[:, 0]),
     )
     results = [_ascend(light, tx, rx, optics, iterations) for tx, rx in (mean, brightest(light))]
     (gain_a, tx_a, rx_a), (gain_b, tx_b, rx_b) = results
@@ -193,7 +193,7 @@ def light_centroid(
     field of view and the beam counts. A link with none gets the boresight's reverse (no reading).
     """
     seen = shares.sum(-1) > 0
-    return _direction(shares, light.arrival, -rx_dir), seen
+    return weighted_direction(shares, light.arrival, -rx_dir), seen
 
 
 def _ascend(light: LightSamples, tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver, iterations: int):
@@ -203,13 +203,13 @@ def _ascend(light: LightSamples, tx: torch.Tensor, rx: torch.Tensor, optics: Tra
         g_d = departure_gain(alpha_d, optics.divergence, optics.wavelength)
         g_a = arrival_gain(angle_between(rx.unsqueeze(1), -light.arrival), optics.half_fov, optics.concentrator_index)
         share = light.weight * g_d * g_a
-        tx = _direction(share * torch.cos(alpha_d), light.departure, tx)
+        tx = weighted_direction(share * torch.cos(alpha_d), light.departure, tx)
         g_d = departure_gain(angle_between(tx.unsqueeze(1), light.departure), optics.divergence, optics.wavelength)
-        rx = _direction(light.weight * g_d, -light.arrival, rx)
+        rx = weighted_direction(light.weight * g_d, -light.arrival, rx)
     return received_gain(light, tx, rx, optics), tx, rx
 
 
-def _direction(weights: torch.Tensor, directions: torch.Tensor, fallback: torch.Tensor) -> torch.Tensor:
+def weighted_direction(weights: torch.Tensor, directions: torch.Tensor, fallback: torch.Tensor) -> torch.Tensor:
     """The unit weighted mean of ``directions`` ``[B, N, 3]``, or ``fallback`` ``[B, 3]`` where it vanishes."""
     total = (weights.unsqueeze(-1) * directions).sum(1)
     norm = torch.linalg.vector_norm(total, dim=-1, keepdim=True)
