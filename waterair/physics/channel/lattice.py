@@ -132,15 +132,21 @@ class TwoScale(ChannelModel):
         pointed: LightSamples = torch.cat([everywhere, *blended], dim=1)  # type: ignore[assignment]
         return pointed
 
+    def pointed_light(self, light: LightSamples) -> LightSamples:
+        """With the pointing given to :meth:`light`, its blend with the beam's lattice (the first lattice is the
+        bound's alone); without, the one lattice."""
+        nodes = self.nodes**2
+        return light if light.shape[1] == nodes else sliced(light, samples=slice(nodes, None))
+
     def receive(self, light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, copies: int = 1) -> Reception:
         """With the pointing given to :meth:`light`: the bound from the lattice around the tracked point
         (independent of the pointing; searched once per link of ``copies``), the gain and the detector's
-        reading from its blend with the beam's."""
+        reading from its blend with the beam's (:meth:`pointed_light`)."""
         nodes = self.nodes**2
         if light.shape[1] == nodes:
             return receive(light, tx_dir, rx_dir, self.optics, copies=copies)
-        beam, bound = sliced(light, samples=slice(nodes, None)), sliced(light, samples=slice(nodes))
-        return receive(beam, tx_dir, rx_dir, self.optics, bound_light=bound, copies=copies)
+        bound = sliced(light, samples=slice(nodes))
+        return receive(self.pointed_light(light), tx_dir, rx_dir, self.optics, bound_light=bound, copies=copies)
 
 
 def _scaled(light: LightSamples, factor: torch.Tensor) -> LightSamples:

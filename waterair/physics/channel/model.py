@@ -83,6 +83,11 @@ class ChannelModel:
         compute what does not depend on the pointing once per link (the two-scale lattice does)."""
         raise NotImplementedError
 
+    def pointed_light(self, light: LightSamples) -> LightSamples:
+        """The samples of :meth:`light` that a pointing receives, those its gain sums (all, unless a model also
+        carries samples for its bound only): what the beacon's reading reverses (:mod:`.beacon`)."""
+        return light
+
     def receive(self, light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, copies: int = 1) -> Reception:
         """What pointings ``tx_dir`` (up) and ``rx_dir`` (down) ``[B, 3]`` receive of ``light`` (``copies`` as in
         :meth:`light`)."""
