@@ -1,0 +1,95 @@
+"""The torch and tensordict internals the compiled step relies on, each guarded by a test whose failure names it,
+so that a release which changes one is found by ``make test`` and not by a slow run (an evaluation that compiles
+a graph per batch, a step that runs eagerly after a wall of warnings). Traced with dynamo's counting backend:
+nothing here compiles code."""
+
+import pytest
+import torch
+from torch._dynamo.testing import CompileCounter
+
+from waterair.envs import stepper
+from waterair.envs.stepper import BATCH_SOURCES, MEMO_TYPES, RECOMPILE_LIMIT, varying_environments
+
+
+def frames(function, calls) -> int:
+    """How many graphs dynamo traces for ``function`` over ``calls`` (each a tuple of arguments)."""
+    counter = CompileCounter()
+    compiled = torch.compile(function, backend=counter)
+    torch._dynamo.reset()
+    for arguments in calls:
+        compiled(*arguments)
+    return counter.frame_count
+
+
+def step(state):  # named as the kernel's input, so that BATCH_SOURCES names it
+    return state["x"] * 2.0
+
+
+def other(values):  # an input BATCH_SOURCES does not name
+    return values * 2.0
+
+
+def test_dynamic_sources_make_the_step_inputs_batch_symbolic_and_nothing_else():
+    name = "torch.compiler.config.dynamic_sources"
+    assert hasattr(torch.compiler.config, "dynamic_sources"), f"{name} is gone (waterair.envs.stepper.BATCH_SOURCES)"
+    batches = [({"x": torch.ones(n)},) for n in (3, 5, 7)]
+    with varying_environments():
+        assert frames(step, batches) == 1, (
+            f"{name} = {BATCH_SOURCES!r} no longer makes L['state']'s first dimension symbolic: an evaluation "
+            "would compile a graph for every batch size"
+        )
+        sizes = [(torch.ones(n),) for n in (3, 5, 7)]
+        assert frames(other, sizes) == 3, (
+            "torch._dynamo.config.automatic_dynamic_shapes = False no longer keeps other inputs static inside "
+            "waterair.envs.stepper.varying_environments: graphs would depend on what ran before them"
+        )
+    assert frames(other, [(torch.ones(n),) for n in (3, 5, 7)]) == 2  # outside: torch's automatic dynamic shapes
+
+
+def test_the_recompile_limits_are_raised_where_the_step_is_compiled():
+    dynamo = torch._dynamo.config
+    for key in ("recompile_limit", "accumulated_recompile_limit"):
+        assert isinstance(getattr(dynamo, key, None), int), f"torch._dynamo.config.{key} is gone (stepper.compiled)"
+    with dynamo.patch(recompile_limit=8, accumulated_recompile_limit=256):
+        stepper.compiled.cache_clear()
+        stepper.compiled("conclude")
+        assert dynamo.recompile_limit == RECOMPILE_LIMIT and dynamo.accumulated_recompile_limit == 4 * RECOMPILE_LIMIT
+    stepper.compiled.cache_clear()
+
+
+def test_the_tensorclass_memo_is_filled_before_the_first_compile():
+    from tensordict import utils
+
+    name = "tensordict.utils._TENSORCLASS_MEMO"
+    memo = getattr(utils, "_TENSORCLASS_MEMO", None)
+    assert isinstance(memo, dict), f"{name} is gone: see waterair.envs.stepper.MEMO_TYPES"
+    for kind in MEMO_TYPES:
+        memo.pop(kind, None)
+    stepper.compiled.cache_clear()
+    stepper.compiled("conclude")
+    stepper.compiled.cache_clear()
+    missing = [kind.__name__ for kind in MEMO_TYPES if kind not in memo]
+    assert not missing, f"{name} no longer remembers {missing} when asked (waterair.envs.stepper.MEMO_TYPES)"
+
+
+def test_is_compiling_tells_the_surface_sums_that_they_run_in_a_graph():
+    def where(x):
+        return x + (1.0 if torch.compiler.is_compiling() else 0.0)
+
+    counter = CompileCounter()
+    assert torch.compile(where, backend=counter, fullgraph=True)(torch.zeros(1)).item() == 1.0, (
+        "torch.compiler.is_compiling() is False while tracing: a compiled step would take the factorised "
+        "lattice sums, 3.7x slower under inductor (waterair.physics.surface)"
+    )
+
+
+def test_the_inductor_cache_folder_is_where_the_compile_thresholds_look(monkeypatch, tmp_path):
+    name = "torch._inductor.runtime.cache_dir_utils"
+    try:
+        from torch._inductor.runtime.cache_dir_utils import cache_dir, default_cache_dir
+    except ImportError as error:  # pragma: no cover - what the test is for
+        pytest.fail(f"{name}.default_cache_dir is gone (waterair.core.compiling.cache_state): {error}")
+    monkeypatch.delenv("TORCHINDUCTOR_CACHE_DIR", raising=False)
+    assert cache_dir() == default_cache_dir(), f"{name}: torch's cache is no longer its default_cache_dir()"
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
+    assert cache_dir() == str(tmp_path), f"{name}: TORCHINDUCTOR_CACHE_DIR no longer sets torch's cache"
