@@ -219,3 +219,10 @@ def test_the_full_channels_beacon_agrees_with_the_monte_carlo_reference_on_measu
     squared, moved = torch.cat(squared), torch.cat(moved)
     assert squared.mean().item() < 2.5 and squared.max().item() < 4.5**2
     assert moved.mean().item() > 10.0
+
+
+def test_a_beacon_base_outside_residual_mode_still_reports_its_tilts():
+    env = WaterAirEnv(n_freq=16, n_dir=8, num_envs=2, seed=1, residual_base="beacon_tracker")  # absolute mode
+    assert env.constants.beacon is not None
+    td = env.step(env.reset().set("action", torch.zeros(2, 4)))["next"]
+    assert torch.isfinite(td["base_tilt"]).all() and td["base_tilt"].abs().sum() > 0

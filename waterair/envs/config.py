@@ -280,10 +280,9 @@ class EnvConfig:
 
     @property
     def senses_beacon(self) -> bool:
-        """Whether the step reads the beacon: its reading is observed, or the residual base follows it."""
-        return "beacon" in self.observation_extras or (
-            self.action_mode == "residual" and self.residual_base == "beacon_tracker"
-        )
+        """Whether the step reads the beacon: its reading is observed, or the residual base follows it (the base's
+        tilts are reported in every action mode)."""
+        return "beacon" in self.observation_extras or self.residual_base == "beacon_tracker"
 
     @property
     def max_tilt(self) -> float:
