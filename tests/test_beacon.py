@@ -212,7 +212,7 @@ def test_the_full_channels_beacon_agrees_with_the_monte_carlo_reference_on_measu
             times,
             model.prepare(tx, rx, surface.unresolved),
         )
-        got = read_beacon(model.pointed_light(light), tx_dir, rx_dir, Beacon(), OPTICS)
+        got = read_beacon(model.unpointed_light(light), tx_dir, rx_dir, Beacon(), OPTICS)
         squared.append((angle_between(got.incoming, expected.incoming) / error).pow(2))
         moved.append(angle_between(expected.incoming, tx_dir) / error)
         assert abs((got.gain / expected.gain).mean().item() - 1.0) < 0.02
@@ -226,3 +226,23 @@ def test_a_beacon_base_outside_residual_mode_still_reports_its_tilts():
     assert env.constants.beacon is not None
     td = env.step(env.reset().set("action", torch.zeros(2, 4)))["next"]
     assert torch.isfinite(td["base_tilt"]).all() and td["base_tilt"].abs().sum() > 0
+
+
+def test_the_full_channels_beacon_reads_the_same_light_wherever_the_laser_points():
+    """The beacon's light reaches the transmitter from every refraction point, wherever the laser points: the
+    lattice it reverses is the one around the tracked point, not the one placed where the beam goes (reading
+    that one confined a misaimed laser's reading to where it already pointed). Two laser pointings 20 mrad
+    apart, the detector's axis fixed: the same reading, bit for bit."""
+    model = TwoScale(OPTICS)
+    surface = seas(model, 4, 7)
+    tx, rx = ends(0.1, 4)
+    calm_point = flat_sea_point(tx, rx, OPTICS.n_water, OPTICS.n_air)
+    detector, rx_dir = unit_vector(calm_point - tx), unit_vector(calm_point - rx)
+    path = solve_path(surface, tx, rx, 3.0)
+    times, prepared = torch.full((4,), 3.0, dtype=F64), model.prepare(tx, rx, surface.unresolved)
+    readings = []
+    for tilt in (0.0, 0.02):
+        laser = unit_vector(detector + torch.tensor([tilt, 0.0, 0.0], dtype=F64))
+        light = model.light(surface.harmonics, path, LinkEnds(tx, rx, calm_point, laser), times, prepared)
+        readings.append(read_beacon(model.unpointed_light(light), detector, rx_dir, Beacon(), OPTICS))
+    assert torch.equal(readings[0].incoming, readings[1].incoming) and torch.equal(readings[0].gain, readings[1].gain)

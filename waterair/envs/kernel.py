@@ -305,7 +305,7 @@ def read_beacon_packet(c: StepConstants, light: LightSamples, tx_dir, rx_dir, re
     if c.beacon is None:
         zero = torch.zeros_like(tx_dir[:, 0])
         return torch.zeros_like(tx_dir[:, :2]), zero
-    seen = read_beacon(c.channel.pointed_light(light), tx_dir, rx_dir, c.beacon, c.optics)
+    seen = read_beacon(c.channel.unpointed_light(light), tx_dir, rx_dir, c.beacon, c.optics)
     level = seen.gain / c.beacon.reference_gain(reference_gain, c.optics)
     true = spot_position(-seen.incoming, tx_dir, c.beacon.half_fov)
     return c.sensor.beacon(true, seen.lit, level, noise)

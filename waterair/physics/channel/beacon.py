@@ -91,9 +91,9 @@ class BeaconReading(NamedTuple):
 def read_beacon(
     light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, beacon: Beacon, optics: Transceiver
 ) -> BeaconReading:
-    """The beacon's light at the transmitter for the uplink's ``light`` ``[B, N]`` (the samples a pointing
-    receives: :meth:`~.model.ChannelModel.pointed_light`), the transmitter pointing ``tx_dir`` (up, the
-    detector's axis) and the receiver boresight ``rx_dir`` (down) ``[B, 3]``."""
+    """The beacon's light at the transmitter for the uplink's ``light`` ``[B, N]`` (the samples placed whatever
+    the laser points at: :meth:`~.model.ChannelModel.unpointed_light`), the transmitter pointing ``tx_dir`` (up,
+    the detector's axis) and the receiver boresight ``rx_dir`` (down) ``[B, 3]``."""
     axis = beacon.axis(rx_dir)
     emitted = departure_gain(angle_between(axis.unsqueeze(1), -light.arrival), beacon.divergence, beacon.wavelength)
     accepted = arrival_gain(

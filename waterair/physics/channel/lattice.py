@@ -132,21 +132,20 @@ class TwoScale(ChannelModel):
         pointed: LightSamples = torch.cat([everywhere, *blended], dim=1)  # type: ignore[assignment]
         return pointed
 
-    def pointed_light(self, light: LightSamples) -> LightSamples:
-        """With the pointing given to :meth:`light`, its blend with the beam's lattice (the first lattice is the
-        bound's alone); without, the one lattice."""
+    def unpointed_light(self, light: LightSamples) -> LightSamples:
+        """The lattice around the tracked point (the bound's), without the blend placed for the pointing."""
         nodes = self.nodes**2
-        return light if light.shape[1] == nodes else sliced(light, samples=slice(nodes, None))
+        return light if light.shape[1] == nodes else sliced(light, samples=slice(nodes))
 
     def receive(self, light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, copies: int = 1) -> Reception:
         """With the pointing given to :meth:`light`: the bound from the lattice around the tracked point
         (independent of the pointing; searched once per link of ``copies``), the gain and the detector's
-        reading from its blend with the beam's (:meth:`pointed_light`)."""
+        reading from its blend with the beam's."""
         nodes = self.nodes**2
         if light.shape[1] == nodes:
             return receive(light, tx_dir, rx_dir, self.optics, copies=copies)
-        bound = sliced(light, samples=slice(nodes))
-        return receive(self.pointed_light(light), tx_dir, rx_dir, self.optics, bound_light=bound, copies=copies)
+        beam, bound = sliced(light, samples=slice(nodes, None)), self.unpointed_light(light)
+        return receive(beam, tx_dir, rx_dir, self.optics, bound_light=bound, copies=copies)
 
 
 def _scaled(light: LightSamples, factor: torch.Tensor) -> LightSamples:

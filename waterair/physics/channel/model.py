@@ -83,9 +83,10 @@ class ChannelModel:
         compute what does not depend on the pointing once per link (the two-scale lattice does)."""
         raise NotImplementedError
 
-    def pointed_light(self, light: LightSamples) -> LightSamples:
-        """The samples of :meth:`light` that a pointing receives, those its gain sums (all, unless a model also
-        carries samples for its bound only): what the beacon's reading reverses (:mod:`.beacon`)."""
+    def unpointed_light(self, light: LightSamples) -> LightSamples:
+        """The samples of :meth:`light` placed whatever the transmitter points at (all of them, unless a model
+        also places samples where the beam goes): what the beacon's reading reverses (:mod:`.beacon`), since
+        the beacon's light reaches the transmitter wherever its laser points."""
         return light
 
     def receive(self, light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, copies: int = 1) -> Reception:
