@@ -21,6 +21,7 @@ from waterair.physics.link import link_performance  # noqa: E402
 STYLES = {
     "bound": ("black", "o", (0, (6, 3)), 1.6),
     "tracking": ("tab:purple", "v", ":", 1.4),
+    "beacon_tracker": ("darkgoldenrod", "*", (0, (8, 2)), 1.7),
     "aoa_tracker": ("tab:pink", "p", (0, (5, 1)), 1.6),
     "intensity_dither": ("tab:brown", "d", (0, (3, 1, 1, 1, 1, 1)), 1.4),
     "flat_snell": ("tab:green", "s", "--", 1.4),
@@ -29,6 +30,7 @@ STYLES = {
 }
 """Colour, marker, line style and width of the upper bound and each baseline: every policy differs in all four."""
 SENSING_STYLES = {
+    "beacon_tracker": ("olivedrab", "8", (0, (8, 2, 2, 2)), 1.7),
     "aoa_tracker": ("darkmagenta", "<", (0, (2, 2)), 1.6),
     "intensity_dither": ("saddlebrown", ">", (0, (4, 2, 1, 2)), 1.4),
 }
@@ -200,7 +202,8 @@ def rate_vs_divergence(result, wind: float, path: Path) -> Path:
     offsets = [o for w, o, _ in scenario.points if w == wind]
     x = [d * 1e3 for d in scenario.divergences]
     best = {(b["offset_ratio"], b["policy"]): b for b in best_divergences(result.rows, scenario) if b["wind"] == wind}
-    fig, axes = plt.subplots(2, len(offsets), figsize=(5.2 * len(offsets), 7.5), sharex=True, squeeze=False)
+    # one offset still gets the width of the title and a four-column legend
+    fig, axes = plt.subplots(2, len(offsets), figsize=(max(5.2 * len(offsets), 10.0), 7.5), sharex=True, squeeze=False)
     for column, offset in enumerate(offsets):
         for policy in result.policies:
             rows = [result.row("S5", policy["label"], (wind, offset, 0.0), d) for d in scenario.divergences]
