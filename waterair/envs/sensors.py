@@ -19,6 +19,7 @@ from copy import copy as shallow_copy
 import torch
 
 from waterair.envs.noise import draw_nonce, normals
+from waterair.physics.channel import Beacon
 from waterair.physics.optics import Scalar, traced, transverse_frame, unit_vector
 
 PACKET_PARTS = ("tx_pointing", "rx_pointing", "intensity", "spot", "spot_valid", "beacon", "beacon_valid", "history")
@@ -87,9 +88,7 @@ def back_projection(
     ``boresight`` ``[n, 3]``); the transmitter points at where that ray, back-projected from R, meets
     the mean sea level z = 0. Rows not ``seen`` ``[n]`` (no reading) take ``fallback`` (tx, rx).
     """
-    e1, e2 = transverse_frame(boresight)
-    scale = math.tan(half_fov)
-    toward_surface = unit_vector(boresight + scale * (spot[:, :1] * e1 + spot[:, 1:] * e2))
+    toward_surface = spot_direction(boresight, spot, half_fov)
     down = toward_surface[:, 2] < -1e-6
     reach = -rx[:, 2] / torch.where(down, toward_surface[:, 2], -torch.ones_like(rx[:, 2]))
     sea_point = rx + reach.unsqueeze(-1) * toward_surface
@@ -162,7 +161,7 @@ class Sensor:
         generator: torch.Generator,
         beacon_noise_rad: float = 0.0,
         beacon_threshold: float = 0.0,
-        beacon_half_fov: float = 0.17,
+        beacon_half_fov: float = Beacon.half_fov,
     ):
         self.latency_steps = latency_steps
         self.intensity_noise: Scalar = intensity_noise
@@ -177,6 +176,7 @@ class Sensor:
         self.noisy_intensity = bool(intensity_noise or intensity_noise_floor)
         self.noisy_spot = bool(spot_noise_rad)
         self.noisy_beacon = bool(beacon_noise_rad)
+        self._noise_on = torch.tensor([self.noisy_intensity] * 2 + [self.noisy_spot] * 2 + [self.noisy_beacon] * 2)
 
     def traced(self, device: torch.device) -> Sensor:
         """This sensor as a compiled step takes it: its noise levels and spot threshold 0-dim float64 tensors on
@@ -198,8 +198,7 @@ class Sensor:
         if not (self.noisy_intensity or self.noisy_spot or self.noisy_beacon):
             return None
         draws = normals(keys, draw_nonce(self.generator), 6)
-        on = torch.tensor([self.noisy_intensity] * 2 + [self.noisy_spot] * 2 + [self.noisy_beacon] * 2)
-        return torch.where(on, draws, 0.0).to(device=device, dtype=dtype)
+        return torch.where(self._noise_on, draws, 0.0).to(device=device, dtype=dtype)
 
     def intensity(self, true: torch.Tensor, noise: torch.Tensor | None) -> torch.Tensor:
         """Measured intensity ``[n]``: I (1 + σ_rel n1) + σ_floor n2, clipped to [0, saturation]."""
@@ -214,20 +213,22 @@ class Sensor:
 
     def spot(self, true: torch.Tensor, lit: torch.Tensor, measured_intensity: torch.Tensor, noise):
         """Spot reading ``[n, 2]`` and its validity ``[n]`` (float 0/1): noisy where light is seen, else 0."""
-        valid = lit & (measured_intensity >= self.spot_threshold)
-        reading = true
-        if self.noisy_spot and noise is not None:
-            reading = true + self.spot_noise * noise[:, 2:4]
-        reading = torch.where(valid.unsqueeze(-1), reading, torch.zeros_like(reading))
-        return reading, valid.to(true.dtype)
+        return _gated(
+            true, lit & (measured_intensity >= self.spot_threshold), self.noisy_spot, self.spot_noise, noise, 2
+        )
 
     def beacon(self, true: torch.Tensor, lit: torch.Tensor, intensity: torch.Tensor, noise):
         """Beacon reading ``[n, 2]`` and its validity ``[n]`` (float 0/1) at the transmitter: the true reading
         ``[n, 2]`` plus noise where the beacon's light is seen (``lit``) at ``intensity`` (G_B over its calm-sea
         value) at or above the threshold, else 0."""
-        valid = lit & (intensity >= self.beacon_threshold)
-        reading = true
-        if self.noisy_beacon and noise is not None:
-            reading = true + self.beacon_noise * noise[:, 4:6]
-        reading = torch.where(valid.unsqueeze(-1), reading, torch.zeros_like(reading))
-        return reading, valid.to(true.dtype)
+        return _gated(true, lit & (intensity >= self.beacon_threshold), self.noisy_beacon, self.beacon_noise, noise, 4)
+
+
+def _gated(true: torch.Tensor, valid: torch.Tensor, noisy: bool, scale: Scalar, noise, column: int):
+    """A detector's reading ``[n, 2]`` and its validity ``[n]`` (float 0/1): ``true`` plus ``scale`` times the noise
+    columns ``column``, ``column + 1`` where the detector is ``noisy`` and a draw is given, 0 where not ``valid``."""
+    reading = true
+    if noisy and noise is not None:
+        reading = true + scale * noise[:, column : column + 2]
+    reading = torch.where(valid.unsqueeze(-1), reading, torch.zeros_like(reading))
+    return reading, valid.to(true.dtype)
