@@ -21,7 +21,7 @@ from waterair.physics.link import link_performance  # noqa: E402
 STYLES = {
     "bound": ("black", "o", (0, (6, 3)), 1.6),
     "tracking": ("tab:purple", "v", ":", 1.4),
-    "beacon_tracker": ("darkgoldenrod", "*", (0, (8, 2)), 1.7),
+    "beacon_tracker": ("darkgoldenrod", "X", (0, (8, 2)), 1.7),
     "aoa_tracker": ("tab:pink", "p", (0, (5, 1)), 1.6),
     "intensity_dither": ("tab:brown", "d", (0, (3, 1, 1, 1, 1, 1)), 1.4),
     "flat_snell": ("tab:green", "s", "--", 1.4),
