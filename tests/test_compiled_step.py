@@ -9,14 +9,14 @@ observed log-intensity feature shows as up to ~1e-4 absolute.
 What inductor compiles is checked in parts, each test compiling one graph of its own (none relies on another's
 compile, whatever the order), each as small as its code allows: the compile, not the rollout, is the time. One
 environment is stepped compiled and eagerly, compiling in turn its step, its dense finishing and its concluding
-graph, the others eager: the observation presets are subsets of one observation with every extra (each part
-is built by its own code whichever preset asks for it), read through the realistic sensor (noise, latency,
-saturation, gating) with residual actions on the quadrant tracker and the training defaults' per-link draws,
-on the paper's sea and single path, whose exact point needs the finishing (one Newton iteration in the step
-and two at a time in the finishing, so that links are finished on most steps). The full channel's two models
-(the ray tube on the paper's sea, the two-scale lattice on the defaults') differ from it only in their light
-and reception, each compiled on its own; that an environment on the defaults' channel traces into one step
-graph is the evaluation tests' below.
+graph, the others eager: the observation presets are subsets of one observation with every extra (each part is
+built by its own code whichever preset asks for it), read through the realistic sensor (noise, latency,
+saturation, gating) with residual actions on the quadrant tracker, the training defaults' per-link draws and a
+divergence per link, on the paper's sea and single path, whose exact point needs the finishing (one Newton
+iteration in the step and two at a time in the finishing, so that links are finished on most steps). The full
+channel's two models (the ray tube on the paper's sea, the two-scale lattice on the defaults') differ from it
+only in their light and reception, each compiled on its own; that an environment on the defaults' channel traces
+into one step graph is the evaluation tests' below.
 """
 
 import functools
@@ -43,10 +43,16 @@ SMALL_SEA = {"n_freq": 16, "n_dir": 8}
 PAPER = {"spectrum": "jonswap", "channel": "single_path"}  # the single path converges the tracked point: finishing
 FIXED_LINK = {"wind_range": None, "offset_range": None}
 """The evaluation's environments below: every link at the default wind and offset."""
-STEP = {"observation_extras": OBSERVATION_EXTRAS, "residual_base": "aoa_tracker", "newton_iterations": 1, **PAPER}
+STEP = {
+    "observation_extras": OBSERVATION_EXTRAS,
+    "residual_base": "aoa_tracker",
+    "newton_iterations": 1,
+    "divergence_values": (0.05, 0.01, 0.1, 0.02),
+    **PAPER,
+}
 """The environment whose step is compiled: every observation part, the realistic sensor, residual actions on the
-quadrant tracker, the paper's single path with one Newton iteration a step, so that links are finished on most
-steps."""
+quadrant tracker, links with divergences of their own, the paper's single path with one Newton iteration a step, so
+that links are finished on most steps."""
 
 
 @pytest.fixture

@@ -439,6 +439,9 @@ def test_latest_run_is_the_newest_checkpoint(tmp_path):
 
 BEACON_KEYS = ("beacon", "beacon_noise_rad", "beacon_threshold")
 """The env keys of the drone's beacon (docs/model.md §4.9)."""
+LATER_KEYS = (*BEACON_KEYS, "divergence_range", "divergence_values")
+"""The env keys that came after every shipped policy: the beacon's (their sensors read none) and each link's own
+divergence (they were trained at one, ``optics.divergence``)."""
 
 
 @pytest.mark.parametrize("name", list(SHIPPED))
@@ -451,7 +454,7 @@ def test_each_shipped_policy_loads_matches_its_metrics_and_has_the_documented_co
     trained = OmegaConf.to_container(policy.config, resolve=True)
     if "link" not in trained:  # the link budget came after `paper` was trained: its config has none
         documented.pop("link")
-    for key in BEACON_KEYS:  # the beacon came after every shipped policy: their sensors read none
+    for key in LATER_KEYS:
         assert key not in trained["env"]
         documented["env"].pop(key)
     # whether to compile and on how many threads change the speed, not the policy: they were trained compiled,

@@ -110,6 +110,23 @@ def test_the_beam_divergence_as_a_tensor_gives_what_the_float_gives(divergence):
         Transceiver(divergence=torch.tensor(2.0))  # the checks read a tensor as its value
 
 
+def test_a_divergence_per_link_gives_each_link_what_its_float_gives():
+    """One ω_D per link ``[B]`` (Transceiver.for_links) against each link's as a float, for angles ``[B]`` and
+    ``[B, N]``: bit for bit in float64, and in float32 too (what is derived from ω_D is taken in float64, as from a
+    float, before it meets the angles)."""
+    divergences = torch.tensor([0.0005, 0.005, 0.05, 0.1], dtype=torch.float64)
+    per_link = Transceiver().for_links(divergences)
+    assert per_link.rows(slice(1, 3)).divergence.tolist() == [0.005, 0.05]
+    for dtype in (torch.float64, torch.float32):
+        angles = torch.rand(4, 7, generator=torch.Generator().manual_seed(1), dtype=torch.float64).to(dtype) * 0.1
+        together = departure_gain(angles, per_link.divergence, 520e-9)
+        one_dim = departure_gain(angles[:, 0], per_link.divergence, 520e-9)
+        assert together.dtype == dtype == one_dim.dtype
+        for row, value in enumerate(divergences.tolist()):
+            assert torch.equal(together[row], departure_gain(angles[row], value, 520e-9))
+            assert torch.equal(one_dim[row], departure_gain(angles[row, :1], value, 520e-9)[0])
+
+
 def test_arrival_gain_inside_and_outside_the_fov():
     half_fov = 0.17
     angles = torch.tensor([0.0, 0.1, 0.17], dtype=torch.float64)

@@ -46,9 +46,23 @@ PER_LINK = {
     "offset": (0.0, 10.0, ""),
     "offset_azimuth": (-360.0, 360.0, "deg"),
     "wind_direction": (-360.0, 360.0, "deg"),
+    "divergence": (0.0, 1.5, "rad"),
 }
 """Quantities each link may draw from ``<name>_range`` or take from ``<name>_values``: (low, high, unit)."""
-OBSERVATION_EXTRAS = ("spot", "spot_valid", "beacon", "beacon_valid", "history", "action_history", "geometry")
+LOW_OPEN = ("wind", "divergence")
+"""The :data:`PER_LINK` quantities whose lower bound is excluded."""
+LOG_UNIFORM = ("divergence",)
+"""The :data:`PER_LINK` quantities drawn uniformly in their logarithm (each octave as likely), not in their value."""
+OBSERVATION_EXTRAS = (
+    "spot",
+    "spot_valid",
+    "beacon",
+    "beacon_valid",
+    "history",
+    "action_history",
+    "geometry",
+    "divergence",
+)
 """Opt-in observation parts, in the order they follow the paper's 8 (docs/environment.md)."""
 SENSOR_KEYS = (
     "latency_steps",
@@ -111,17 +125,19 @@ class EnvConfig:
     spot_threshold: float = 0.0  # measured intensity below which the detector reads no spot
     beacon_noise_rad: float = 0.0  # standard deviation of each component of the beacon reading, as an angle (rad)
     beacon_threshold: float = 0.0  # beacon intensity (of its calm-sea value) below which it reads nothing
-    # domain randomisation: per-link values drawn uniformly at every reset, or None
+    # domain randomisation: per-link values drawn uniformly at every reset (ω_D: uniformly in its log), or None
     wind_range: tuple[float, float] | None = None  # m/s
     offset_range: tuple[float, float] | None = None  # offset ratio
     offset_azimuth_range: tuple[float, float] | None = None  # deg: the drone anywhere around the transmitter
     wind_direction_range: tuple[float, float] | None = None  # deg: wind from any direction
+    divergence_range: tuple[float, float] | None = None  # rad: the beam divergence ω_D (null: optics.divergence)
     # per-link scenario values (evaluation grids): link i uses values[i % len(values)], or None.
     # Given together, the lists have one entry per scenario point (link i is point i % len).
     wind_values: tuple[float, ...] | None = None  # m/s
     offset_values: tuple[float, ...] | None = None  # offset ratio
     offset_azimuth_values: tuple[float, ...] | None = None  # deg
     wind_direction_values: tuple[float, ...] | None = None  # deg
+    divergence_values: tuple[float, ...] | None = None  # rad
     # the batch is `replicas` copies of num_envs / replicas links with identical seas (paired comparisons)
     replicas: int = 1
     # torch.compile the whole step into one graph (one-off compile, cached by torch per machine;
@@ -190,7 +206,7 @@ class EnvConfig:
         for name, (low, high, unit) in PER_LINK.items():
             range_key = f"{name}_range"
             if getattr(self, range_key) is not None:
-                pair = _check_pair(f"env.{range_key}", getattr(self, range_key), low, high, unit, name == "wind")
+                pair = _check_pair(f"env.{range_key}", getattr(self, range_key), low, high, unit, name in LOW_OPEN)
                 object.__setattr__(self, range_key, pair)
             self._check_values(name, low, high, unit)
         lengths = {
@@ -212,7 +228,7 @@ class EnvConfig:
         if getattr(self, f"{name}_range") is not None:
             raise ValueError(f"env.{key} and env.{name}_range are both set; use one of them")
         for index, value in enumerate(values):
-            check_range(f"env.{key}[{index}]", value, low, high, low_open=(name == "wind"), unit=unit)
+            check_range(f"env.{key}[{index}]", value, low, high, low_open=name in LOW_OPEN, unit=unit)
         object.__setattr__(self, key, tuple(float(v) for v in values))
 
     @classmethod
@@ -296,7 +312,7 @@ class EnvConfig:
         ``tx_pointing`` (3), ``rx_pointing`` (3), ``intensity`` (1), ``time`` (1), then the opt-in
         extras in the order of :data:`OBSERVATION_EXTRAS`: ``spot`` (2), ``spot_valid`` (1), ``beacon`` (2),
         ``beacon_valid`` (1), ``history`` (``history_length``), ``action_history`` (4 × ``history_length``),
-        ``geometry`` (2).
+        ``geometry`` (2), ``divergence`` (1).
         """
         extra_sizes = {
             "spot": 2,
@@ -306,6 +322,7 @@ class EnvConfig:
             "history": self.history_length,
             "action_history": 4 * self.history_length,
             "geometry": 2,
+            "divergence": 1,
         }
         sizes = {"tx_pointing": 3, "rx_pointing": 3, "intensity": 1, "time": 1}
         sizes.update({name: extra_sizes[name] for name in OBSERVATION_EXTRAS if name in self.observation_extras})

@@ -14,6 +14,7 @@ import torch
 
 from waterair.envs.baselines import FlatSeaSnell, PointingPolicy
 from waterair.envs.sensors import back_projection, beacon_pointing, intensity_from_feature, read_parked
+from waterair.physics.optics import per_link
 
 
 class BeaconTracker(PointingPolicy):
@@ -91,7 +92,8 @@ class IntensityDither(PointingPolicy):
     """Intensity-only beam triangulation for the transmitter; the receiver at flat-sea Snell.
 
     Assumes only the measured intensity and the pointing it was measured with (one packet), the
-    nominal positions T and R, and the beam divergence ω_D from the laser's datasheet.
+    nominal positions T and R, and the beam divergence ω_D from the laser's datasheet (each link's own, the
+    ``divergence`` key).
 
     A Gaussian beam gives ln I = c − 2 |v − v*|² / ω_D² around the best tilt v*, which is linear in
     (c', v*) once |v|² is moved left: three probes determine it exactly. Each step fits v* through
@@ -138,7 +140,8 @@ class IntensityDither(PointingPolicy):
         fresh = self.env.observation_part(observation, "time")[:, 0] == 0
         self._remember(tilt, intensity, fresh, parked_reading(self.env, observation))
         flat_tilt = flat_tx[:, :2]
-        best, usable = self._fit(flat_tilt)
+        divergence = tensordict.get("divergence").double()  # [n] float64: what is derived from it, as from a float
+        best, usable = self._fit(flat_tilt, divergence)
         if self.smoothing == 1.0:  # each step's fit as it is
             target = torch.where(usable.unsqueeze(-1), best, flat_tilt)
         else:  # the fits' offset from flat-sea Snell, averaged over about 1/smoothing steps
@@ -149,7 +152,8 @@ class IntensityDither(PointingPolicy):
             self.offset = torch.where((self.count == 0).unsqueeze(-1), fitted, moved)
             target = flat_tilt + self.offset
         angle = 2.0 * math.pi * (self.turn % self.PROBES) / self.PROBES
-        dither = self.radius * self.env.optics.divergence * torch.stack((torch.cos(angle), torch.sin(angle)), -1)
+        turn = torch.stack((torch.cos(angle), torch.sin(angle)), -1)
+        dither = per_link(self.radius * divergence, turn) * turn
         self.turn = self.turn + 1
         tx_tilt = target + dither.to(target.dtype)
         vertical = torch.sqrt((1.0 - (tx_tilt**2).sum(-1, keepdim=True)).clamp(min=0.0))
@@ -170,16 +174,16 @@ class IntensityDither(PointingPolicy):
         lit = (intensity >= self.min_intensity) & ~parked
         self.count = torch.where(lit, (self.count + 1).clamp(max=self.PROBES), torch.zeros_like(self.count))
 
-    def _fit(self, flat_tilt: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """v* of the Gaussian through the held probes ``[n, 2]``, and where that fit is usable ``[n]``."""
-        divergence = self.env.optics.divergence
+    def _fit(self, flat_tilt: torch.Tensor, divergence: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """v* of the Gaussian through the held probes ``[n, 2]``, and where that fit is usable ``[n]``, for each
+        link's ω_D ``[n]`` (float64)."""
         scale = 4.0 / divergence**2
         tilt, log_intensity = self.probes[..., :2], self.probes[..., 2]
-        system = torch.cat((torch.ones_like(log_intensity).unsqueeze(-1), scale * tilt), dim=-1)
-        rhs = log_intensity + 0.5 * scale * (tilt**2).sum(-1)
+        system = torch.cat((torch.ones_like(log_intensity).unsqueeze(-1), per_link(scale, tilt) * tilt), dim=-1)
+        rhs = log_intensity + per_link(0.5 * scale, tilt[..., 0]) * (tilt**2).sum(-1)
         determinant = torch.linalg.det(system)
         # 1 % of the determinant of the dither triangle itself: probes closer to a line are ignored.
-        conditioned = determinant.abs() > 0.01 * (scale * self.radius * divergence) ** 2
+        conditioned = determinant.abs() > per_link(0.01 * (scale * self.radius * divergence) ** 2, determinant)
         eye = torch.eye(3, dtype=system.dtype, device=system.device)
         solution = torch.linalg.solve(system + (~conditioned).to(system.dtype)[:, None, None] * eye, rhs)
         best = solution[:, 1:]

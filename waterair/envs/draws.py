@@ -1,13 +1,16 @@
-"""What each link gets at a reset: its wind, wind direction, offset and azimuth (docs/environment.md, "Start").
+"""What each link gets at a reset: its wind, wind direction, offset, azimuth and beam divergence
+(docs/environment.md, "Start").
 
-Each is drawn uniformly from ``<name>_range``, cycled from the scenario list ``<name>_values`` (link i
-takes entry i mod its length), or left to the default. Replicas share their draws: a batch of k
-replicas draws once per distinct link (:func:`distinct_links`) and copies to each replica. The
-environment draws in a fixed order (the sea's conditions, its surface, then the geometry), so that a
-seed gives the same seas whatever else is configured.
+Each is drawn uniformly from ``<name>_range`` (the divergence uniformly in its logarithm), cycled from the
+scenario list ``<name>_values`` (link i takes entry i mod its length), or left to the default. Replicas share
+their draws: a batch of k replicas draws once per distinct link (:func:`distinct_links`) and copies to each
+replica. The environment draws in a fixed order (the sea's conditions, its surface, the geometry, then the divergence),
+so that a seed gives the same seas and geometry whatever else is configured.
 """
 
 from __future__ import annotations
+
+import math
 
 import torch
 
@@ -33,12 +36,24 @@ def geometry(config: EnvConfig, links: torch.Tensor, generator: torch.Generator)
     return offset, azimuth
 
 
-def per_link(bounds, values, default, links: torch.Tensor, generator: torch.Generator) -> torch.Tensor | None:
-    """float64 ``[m]`` values for ``links``: drawn from ``bounds``, cycled from ``values``, or ``default``."""
+def divergence(config: EnvConfig, links: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """The beam divergence ω_D (rad) ``[m]`` float64 of distinct ``links``: log-uniform in ``divergence_range``,
+    cycled from ``divergence_values``, or the optics' own."""
+    return per_link(
+        config.divergence_range, config.divergence_values, config.optics.divergence, links, generator, log=True
+    )
+
+
+def per_link(
+    bounds, values, default, links: torch.Tensor, generator: torch.Generator, log: bool = False
+) -> torch.Tensor | None:
+    """float64 ``[m]`` values for ``links``: drawn from ``bounds`` (uniformly, or uniformly in the logarithm
+    with ``log``), cycled from ``values``, or ``default``."""
     count = links.numel()
     if bounds is not None:
-        low, high = bounds
-        return low + (high - low) * torch.rand(count, generator=generator, dtype=torch.float64)
+        low, high = (math.log(b) for b in bounds) if log else bounds
+        drawn = low + (high - low) * torch.rand(count, generator=generator, dtype=torch.float64)
+        return drawn.exp() if log else drawn
     if values is not None:
         return torch.tensor(values, dtype=torch.float64)[links.cpu() % len(values)]
     return None if default is None else torch.full((count,), default, dtype=torch.float64)

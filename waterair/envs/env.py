@@ -13,8 +13,9 @@ from torchrl.envs import EnvBase
 from waterair.core.devices import resolve_device
 from waterair.envs import draws, kernel
 from waterair.envs.config import EnvConfig
+from waterair.envs.constants import StepConstants
 from waterair.envs.frames import FrameStack
-from waterair.envs.kernel import MEASUREMENT_KEYS, SURFACE_KEYS, StepConstants
+from waterair.envs.kernel import MEASUREMENT_KEYS, SURFACE_KEYS
 from waterair.envs.noise import stream_keys
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import Sensor
@@ -247,6 +248,7 @@ class WaterAirEnv(EnvBase):
             arrival=vector(3),
             tx_position=vector(3),
             rx_position=vector(3),
+            divergence=Unbounded(shape=(), dtype=torch.float64),
             tilt=vector(4),
             base_tilt=vector(4),
         )
@@ -266,7 +268,7 @@ class WaterAirEnv(EnvBase):
         prepared = self.channel.prepare(tx, rx, self.surface.unresolved)
         shapes = kernel.state_shapes(self.config.history_length, self.config.latency_steps, prepared)
         self.state: dict[str, torch.Tensor] = {
-            key: zeros(*shape, kind=torch.int64 if integer else dtype) for key, (shape, integer) in shapes.items()
+            key: zeros(*shape, kind=kind or dtype) for key, (shape, kind) in shapes.items()
         }
         self._base_tilt = zeros(4)  # the residual base controller's tilts for the next action
         self.measurement = {
@@ -305,6 +307,11 @@ class WaterAirEnv(EnvBase):
         return self.state["reference_gain"]
 
     @property
+    def divergence(self) -> torch.Tensor:
+        """Each link's beam divergence ω_D (rad), ``[B]`` (``env.divergence_range`` draws it at a reset)."""
+        return self.state["divergence"]
+
+    @property
     def tx_position(self) -> torch.Tensor:
         return self.state["tx_position"]
 
@@ -335,8 +342,10 @@ class WaterAirEnv(EnvBase):
         offset, azimuth = draws.geometry(config, distinct, self._generator)
         offset, azimuth = offset[copy.cpu()], None if azimuth is None else azimuth[copy.cpu()]
         tx, rx = (v.to(self.device, dtype) for v in self.link.positions_for(offset, azimuth))
+        divergence = draws.divergence(config, distinct, self._generator)[copy.cpu()].to(self.device)
+        constants = self.constants.for_links(divergence)
         reference = self.channel.reference_gain(tx.double(), rx.double()).to(dtype)
-        prepared = self.channel.prepare(tx, rx, self.surface.unresolved[rows])
+        prepared = constants.channel.prepare(tx, rx, self.surface.unresolved[rows])
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)
         zero = torch.zeros(rows.numel(), device=self.device, dtype=dtype)
         path = solve_path(
@@ -354,10 +363,8 @@ class WaterAirEnv(EnvBase):
         tilts = {"tx_tilt": upright, "rx_tilt": upright}
         noise = self.sensor.draw(self._noise_keys[rows.cpu()], dtype, self.device)
         ends = LinkEnds(tx, rx, flat, pointing(upright, up=True))
-        light = self.stepper.reset_light(self.surface[rows], ends, prepared, path, zero)
-        measurement, packet, stored, _, feature = kernel.record(
-            self.constants, tilts, path, light, reference, flat, noise
-        )
+        light = self.stepper.reset_light(self.surface[rows], ends, prepared, path, zero, constants.channel)
+        measurement, packet, stored, _, feature = kernel.record(constants, tilts, path, light, reference, flat, noise)
         no_history = torch.zeros(rows.numel(), config.history_length, device=self.device, dtype=dtype)
         packed = kernel.pack(packet, no_history)  # a reset has no older packet: it fills every slot
         updates = {
@@ -367,6 +374,7 @@ class WaterAirEnv(EnvBase):
             "rx_tilt": 0.0,
             "tx_position": tx,
             "rx_position": rx,
+            "divergence": divergence,
             "point": stored,
             "previous_point": stored,
             "flat_point": flat,
@@ -395,6 +403,7 @@ class WaterAirEnv(EnvBase):
             observation=observation,
             tx_position=state["tx_position"].clone(),
             rx_position=state["rx_position"].clone(),
+            divergence=state["divergence"].clone(),
             tilt=self.tilt,
             base_tilt=self._base_tilt,
         )

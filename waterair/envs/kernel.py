@@ -8,8 +8,9 @@ host synchronisation. :class:`waterair.envs.env.WaterAirEnv` calls it compiled o
 function, so both give the same numbers to float rounding), then hands the rare links whose path
 has not converged to the adaptive solver and redoes :func:`conclude` for them.
 
-The channel is a :class:`~waterair.physics.channel.ChannelModel` held by :class:`StepConstants`: the
-step asks it for the light and reads it through it; nothing here knows which model it is.
+The channel is a :class:`~waterair.physics.channel.ChannelModel` held by the step's constants
+(:class:`~waterair.envs.constants.StepConstants`): the step asks it for the light and reads it through it;
+nothing here knows which model it is.
 The state is a plain ``dict`` of tensors (:func:`state_shapes`); nothing here keeps state.
 """
 
@@ -17,16 +18,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import torch
 
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
-from waterair.envs.rewards import Reward
+from waterair.envs.constants import StepConstants
 from waterair.envs.sensors import (
     PACKET_PARTS,
-    Sensor,
     back_projection,
     beacon_pointing,
     intensity_feature,
@@ -34,42 +33,47 @@ from waterair.envs.sensors import (
     read_parked,
     spot_position,
 )
-from waterair.physics.channel import Beacon, ChannelModel, LightSamples, LinkEnds, Transceiver, pointing, read_beacon
-from waterair.physics.optics import traced, unit_vector
-from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path, near_calm_point
+from waterair.physics.channel import LightSamples, LinkEnds, pointing, read_beacon
+from waterair.physics.optics import per_link, unit_vector
+from waterair.physics.paths import PathSolution, finish_path, near_calm_point
 from waterair.physics.paths.fixed import fixed_newton_terms
 from waterair.physics.surface import Harmonics
 
 SURFACE_KEYS = Harmonics._fields
 """The seas' resolved components in the state, in the order of :class:`~waterair.physics.surface.Harmonics`."""
+DIVERGENCE_SPAN = (0.005, 0.1)
+"""The beam divergences (rad) the observation's ``divergence`` part reads as −1 and 1: it is linear in log ω_D."""
 MEASUREMENT_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid", "alpha_d", "alpha_a", "departure", "arrival")
 """The true values each step reports beside the observation."""
 
 
 def state_shapes(
     history_length: int, latency_steps: int, prepared: Mapping[str, torch.Tensor]
-) -> dict[str, tuple[tuple[int, ...], bool]]:
-    """Every state entry besides the seas' components (:data:`SURFACE_KEYS`): its per-link shape and
-    whether it is an integer. The clock, the gimbals, the geometry, the last two path points (the
-    prediction), the calm-sea point and G_0, the sensor history, the packets in flight
-    ``[slots, width]``, and the channel's per-episode constants (``prepared``, one link's worth each)."""
+) -> dict[str, tuple[tuple[int, ...], torch.dtype | None]]:
+    """Every state entry besides the seas' components (:data:`SURFACE_KEYS`): its per-link shape and its
+    dtype (None: the environment's float dtype). The clock, the gimbals, the geometry, the beam divergence ω_D,
+    the last two path points (the prediction), the calm-sea point and G_0, the sensor history, the packets in
+    flight ``[slots, width]``, and the channel's per-episode constants (``prepared``, one link's worth each)."""
     return {
-        "time": ((), False),
-        "steps": ((), True),
-        "tx_tilt": ((2,), False),
-        "rx_tilt": ((2,), False),
-        "tx_position": ((3,), False),
-        "rx_position": ((3,), False),
-        "point": ((3,), False),
-        "previous_point": ((3,), False),
-        "flat_point": ((3,), False),
-        "reference_gain": ((), False),
-        "history": ((history_length,), False),  # previous measured intensity features
-        "last_feature": ((), False),  # the newest measured intensity feature
-        "action_history": ((history_length, 4), False),
+        "time": ((), None),
+        "steps": ((), torch.int64),
+        "tx_tilt": ((2,), None),
+        "rx_tilt": ((2,), None),
+        "tx_position": ((3,), None),
+        "rx_position": ((3,), None),
+        # ω_D (rad), the link's own (drawn at its reset), as exact as the configuration's float: the gains take
+        # what they derive from it in float64, as from a float (optics.per_link)
+        "divergence": ((), torch.float64),
+        "point": ((3,), None),
+        "previous_point": ((3,), None),
+        "flat_point": ((3,), None),
+        "reference_gain": ((), None),
+        "history": ((history_length,), None),  # previous measured intensity features
+        "last_feature": ((), None),  # the newest measured intensity feature
+        "action_history": ((history_length, 4), None),
         # the packets in flight, newest first; the controller sees the last slot
-        "packets": ((latency_steps + 1, sum(packet_sizes(history_length))), False),
-        **{key: (tuple(value.shape[1:]), False) for key, value in prepared.items()},
+        "packets": ((latency_steps + 1, sum(packet_sizes(history_length))), None),
+        **{key: (tuple(value.shape[1:]), None) for key, value in prepared.items()},
     }
 
 
@@ -94,72 +98,6 @@ class Record(NamedTuple):
     stored: torch.Tensor
     tracked: torch.Tensor
     feature: torch.Tensor
-
-
-@dataclass(frozen=True)
-class StepConstants:
-    """The numbers of one environment configuration that the step uses (all plain Python values)."""
-
-    optics: Transceiver
-    sensor: Sensor
-    reward: Reward
-    solver: FixedNewtonOptions
-    tolerance: float
-    action_mode: str
-    max_tilt: float
-    residual: float
-    residual_base: str
-    slew_step: float
-    dt: float
-    episode_seconds: float
-    max_steps: int
-    vertical_distance: float
-    channel: ChannelModel
-    replicas: int = 1
-    """The batch's copies of its links (``env.replicas``): the channel computes what does not depend on the
-    pointing once per link of them."""
-    beacon: Beacon | None = None
-    """The drone's beacon where the step reads it (``EnvConfig.senses_beacon``); None: its reading stays 0."""
-
-    @classmethod
-    def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward, channel: ChannelModel) -> StepConstants:
-        solver = FixedNewtonOptions(iterations=config.newton_iterations)
-        return cls(
-            optics=channel.optics,
-            sensor=sensor,
-            reward=reward,
-            solver=solver,
-            tolerance=solver.tolerance(getattr(torch, config.dtype)),
-            action_mode=config.action_mode,
-            max_tilt=config.max_tilt,
-            residual=math.sin(math.radians(config.residual_deg)),
-            residual_base=config.residual_base,
-            slew_step=math.sin(math.radians(config.max_slew_deg_s * config.dt)),
-            dt=config.dt,
-            episode_seconds=config.episode_seconds,
-            max_steps=config.max_steps,
-            vertical_distance=config.geometry.tx_depth + config.geometry.rx_height,
-            channel=channel,
-            replicas=config.replicas,
-            beacon=config.beacon if config.senses_beacon else None,
-        )
-
-    def traced(self, device: torch.device) -> StepConstants:
-        """These constants as the compiled step takes them: the numbers that differ between an evaluation's
-        environments as 0-dim tensors on ``device``: the beam divergence in the optics and the channel's
-        (:meth:`Transceiver.traced`), the sensor's noise levels and threshold (:meth:`Sensor.traced`) and the
-        residual's range. A graph then serves every value of them, and is the same graph whichever value a
-        process compiled first: a float would be compiled in, and compiled symbolic only once torch had seen it
-        change (in that process, or in an earlier one of the same job), so the graphs, and the compile cache
-        they could share between processes, depended on the order in which groups were run."""
-        optics = self.optics.traced(device)
-        return replace(
-            self,
-            optics=optics,
-            channel=replace(self.channel, optics=optics),
-            sensor=self.sensor.traced(device),
-            residual=traced(self.residual, device),  # type: ignore[arg-type]  # a tensor only in the compiled step's copy
-        )
 
 
 def advance(c: StepConstants, state: dict, action: torch.Tensor) -> dict:
@@ -325,6 +263,7 @@ def unpack(packet: torch.Tensor) -> dict[str, torch.Tensor]:
 def conclude(c: StepConstants, state: dict, moved: dict, solution: Solve, noise, light: LightSamples | None = None):
     """The new state and the step's outputs, given the gimbals ``moved`` and the path ``solution``. The
     channel's light is computed here unless it comes as ``light`` (a model that does not compile)."""
+    c = c.for_links(state["divergence"])
     n_w, n_a = c.optics.n_water, c.optics.n_air
     tx, rx = state["tx_position"], state["rx_position"]
     path = finish_path(solution.point, solution.slope, tx, rx, solution.converged, solution.iterations, n_w, n_a)
@@ -380,12 +319,13 @@ def finish(c: StepConstants, state: dict, moved: dict, solution: Solve, noise, i
 
 def misalignment(c: StepConstants, measurement: dict) -> torch.Tensor:
     """α_D / ω_D + α_A / ω_A ``[B]``: how far both ends point from the present path (0 on an invalid one)."""
-    angles = measurement["alpha_d"] / c.optics.divergence + measurement["alpha_a"] / c.optics.half_fov
+    alpha_d = measurement["alpha_d"]
+    angles = alpha_d / per_link(c.optics.divergence, alpha_d) + measurement["alpha_a"] / c.optics.half_fov
     return torch.where(measurement["path_valid"], angles, torch.zeros_like(angles))
 
 
 def observe(c: StepConstants, state: dict) -> torch.Tensor:
-    """Every observation part ``[B, 16 + 5 · history_length]``, in the order of the full layout.
+    """Every observation part ``[B, 17 + 5 · history_length]``, in the order of the full layout.
 
     The delivered packet's parts, then the controller's own knowledge (time, action history,
     geometry), which is never late. An environment keeps the columns of the parts its layout asks
@@ -394,8 +334,11 @@ def observe(c: StepConstants, state: dict) -> torch.Tensor:
     delivered = unpack(state["packets"][:, -1])
     time = (state["time"] / c.episode_seconds).unsqueeze(-1)
     geometry = (state["rx_position"] - state["tx_position"])[:, :2] / c.vertical_distance
+    narrow, wide = DIVERGENCE_SPAN
+    divergence = torch.log(state["divergence"] ** 2 / (narrow * wide)) / math.log(wide / narrow)
+    divergence = divergence.to(time.dtype).unsqueeze(-1)
     late = [delivered[name] for name in PACKET_PARTS]
-    return torch.cat((*late[:3], time, *late[3:], state["action_history"].flatten(1), geometry), dim=-1)
+    return torch.cat((*late[:3], time, *late[3:], state["action_history"].flatten(1), geometry, divergence), dim=-1)
 
 
 def observation_columns(config: EnvConfig) -> list[int] | None:

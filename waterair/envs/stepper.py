@@ -19,8 +19,9 @@ import torch
 from tensordict import TensorDict, is_tensorclass
 
 from waterair.envs import kernel
-from waterair.envs.kernel import Solve, StepConstants
-from waterair.physics.channel import LightSamples, LinkEnds
+from waterair.envs.constants import StepConstants
+from waterair.envs.kernel import Solve
+from waterair.physics.channel import ChannelModel, LightSamples, LinkEnds
 from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path, solve_path
 from waterair.physics.paths.fixed import finish_unconverged
 from waterair.physics.surface import WaveSurface
@@ -100,6 +101,7 @@ class Stepper:
         """(new state entries, outputs) of one step; ``state`` includes the surface's components."""
         c = self.constants
         if not c.channel.compiles:
+            c = c.for_links(state["divergence"])
             moved = kernel.advance(c, state, action)
             solution = kernel.solve(c, state, moved["time"])
             n_w, n_a = c.optics.n_water, c.optics.n_air
@@ -128,11 +130,17 @@ class Stepper:
         return self._finish_paths(surface, state, moved, solution, noise)
 
     def reset_light(
-        self, surface: WaveSurface, ends: LinkEnds, prepared: dict, path: PathSolution, time: torch.Tensor
+        self,
+        surface: WaveSurface,
+        ends: LinkEnds,
+        prepared: dict,
+        path: PathSolution,
+        time: torch.Tensor,
+        channel: ChannelModel,
     ) -> LightSamples:
-        """The light of freshly reset links (their ``surface`` rows, ``ends`` and the channel's ``prepared``
-        constants), eagerly."""
-        return self.constants.channel.light(surface.harmonics, path, ends, time, prepared, self.generator)
+        """The light of freshly reset links (their ``surface`` rows, ``ends`` and the ``channel``'s ``prepared``
+        constants; the channel with their divergences, :meth:`StepConstants.for_links`), eagerly."""
+        return channel.light(surface.harmonics, path, ends, time, prepared, self.generator)
 
     def _finish_paths(self, surface: WaveSurface, state: dict, moved: dict, solution: tuple, noise):
         """Finish the links whose fixed-iteration solve has not converged, then conclude the step again.

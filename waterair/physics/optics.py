@@ -23,7 +23,17 @@ WATER_ATTENUATION_PER_M = {
 }
 """Attenuation coefficient c (1/m) at 532 nm for the usual water types (docs/model.md §4)."""
 Scalar = float | torch.Tensor
-"""A number of the configuration as a float, or as the 0-dim tensor a compiled step takes it as (:func:`traced`)."""
+"""A number of the configuration as a float, or as the 0-dim tensor a compiled step takes it as (:func:`traced`),
+or, for a number each link has its own of (the beam divergence), a ``[B]`` tensor."""
+
+
+def per_link(value: Scalar, like: torch.Tensor) -> Scalar:
+    """``value`` as it broadcasts against ``like`` ``[B, ...]``: a ``[B]`` tensor (one value per link) gets a unit
+    dimension for each of ``like``'s after the first, in ``like``'s dtype; a float or a 0-dim tensor is returned as
+    it is."""
+    if isinstance(value, torch.Tensor) and value.dim() == 1:  # in like's dtype, as a 0-dim tensor would act
+        return value.to(like.dtype).reshape(value.shape[0], *(1,) * (like.dim() - 1))
+    return value
 
 
 def traced(value: float, device: torch.device | str | None = None) -> torch.Tensor:
@@ -99,8 +109,8 @@ def beam_divergence(divergence: Scalar, wavelength: float) -> Scalar:
     """ω_D' = ω_D sqrt(1 + (λ/(π ω_D²))²) (rad): G_D ≈ exp(−2 α²/ω_D'²) for small α (docs/model.md §4.1, eq. 9.1).
 
     Args:
-        divergence: beam divergence ω_D (rad): a float, or a 0-dim tensor (as a compiled step gets it,
-            :meth:`~waterair.physics.channel.Transceiver.traced`), which gives a tensor.
+        divergence: beam divergence ω_D (rad): a float, or a tensor (0-dim as a compiled step gets it,
+            :meth:`~waterair.physics.channel.Transceiver.traced`; ``[B]``, one per link), which gives a tensor.
         wavelength: wavelength λ (m).
     """
     spread = 1.0 + (wavelength / (math.pi * divergence**2)) ** 2
@@ -111,12 +121,13 @@ def departure_gain(alpha_d: torch.Tensor, divergence: Scalar, wavelength: float)
     """Gaussian-beam departure gain G_D(α_D) (docs/model.md §4, paper eq. (2)), dimensionless, G_D(0) = 1.
 
     Args:
-        alpha_d: angle between the transmitter's pointing and the departing ray (rad).
-        divergence: beam divergence ω_D (rad), a float or a 0-dim tensor (as :func:`beam_divergence`).
+        alpha_d: angle between the transmitter's pointing and the departing ray (rad), ``[B, ...]``.
+        divergence: beam divergence ω_D (rad), a float, a 0-dim tensor or one per link ``[B]`` (:func:`per_link`).
         wavelength: wavelength λ (m).
     """
-    spread = 1.0 + (wavelength * torch.cos(alpha_d) / (math.pi * divergence**2)) ** 2
-    return torch.exp(-2.0 * torch.sin(alpha_d) ** 2 / (divergence**2 * spread))
+    squared = divergence**2  # in float64 from a per-link tensor, as from a float, then in alpha_d's dtype
+    spread = 1.0 + (wavelength * torch.cos(alpha_d) / per_link(math.pi * squared, alpha_d)) ** 2
+    return torch.exp(-2.0 * torch.sin(alpha_d) ** 2 / (per_link(squared, alpha_d) * spread))
 
 
 def path_gain(d_water: torch.Tensor, d_air: torch.Tensor, attenuation: float) -> torch.Tensor:

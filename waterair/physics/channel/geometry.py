@@ -73,7 +73,8 @@ class Transceiver:
     Attributes:
         wavelength: laser wavelength λ (m), in (0, 1e-5].
         divergence: beam divergence ω_D (rad), in (0, π/2); a 0-dim tensor in the copy a compiled step
-            takes (:meth:`traced`).
+            takes (:meth:`traced`), one per link ``[B]`` in the copy a step of links with their own takes
+            (:meth:`for_links`).
         half_fov: receiver half field of view ω_A (rad), in (0, π/2).
         concentrator_index: n_c (paper n2), in [1, 3].
         water: attenuation preset name, one of :data:`WATER_ATTENUATION_PER_M`.
@@ -95,7 +96,8 @@ class Transceiver:
 
     def __post_init__(self) -> None:
         check_range("wavelength", self.wavelength, 0.0, 1e-5, low_open=True, unit="m")
-        check_range("divergence", self.divergence, 0.0, math.pi / 2, low_open=True, high_open=True, unit="rad")
+        if not (isinstance(self.divergence, torch.Tensor) and self.divergence.dim() > 0):  # one per link: checked
+            check_range("divergence", self.divergence, 0.0, math.pi / 2, low_open=True, high_open=True, unit="rad")
         check_range("half_fov", self.half_fov, 0.0, math.pi / 2, low_open=True, high_open=True, unit="rad")
         check_range("concentrator_index", self.concentrator_index, 1.0, 3.0)
         check_choice("water", self.water, WATER_ATTENUATION_PER_M)
@@ -110,6 +112,18 @@ class Transceiver:
         then reads the beam divergence as an input and serves every divergence (a float would be compiled in
         as a constant, and each new divergence would compile the step again). Same values, same checks."""
         return replace(self, divergence=traced(self.divergence, device))  # type: ignore[arg-type]  # ω_D a tensor
+
+    def for_links(self, divergence: torch.Tensor) -> Transceiver:
+        """This transceiver with each link's own beam divergence ω_D ``[B]`` (rad, as drawn at its reset): every
+        gain of it then reads link b's ω_D for link b (:func:`~waterair.physics.optics.per_link`)."""
+        return replace(self, divergence=divergence)  # type: ignore[arg-type]  # ω_D a tensor
+
+    def rows(self, index: slice | torch.Tensor) -> Transceiver:
+        """This transceiver for the links ``index`` of a batch: the same, unless ω_D is one per link."""
+        divergence = self.divergence
+        if isinstance(divergence, torch.Tensor) and divergence.dim() == 1:
+            return replace(self, divergence=divergence[index])  # type: ignore[arg-type]
+        return self
 
     @property
     def attenuation_per_m(self) -> float:

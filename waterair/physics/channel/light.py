@@ -94,7 +94,7 @@ def receive(
         searched = light if bound_light is None else bound_light
         if copies > 1:
             links = searched.weight.shape[0] // copies
-            found = upper_bound(sliced(searched, slice(links)), optics)
+            found = upper_bound(sliced(searched, slice(links)), optics.rows(slice(links)))
             bound, departure, boresight = (v.repeat(copies, *(1,) * (v.dim() - 1)) for v in found)
         else:
             bound, departure, boresight = upper_bound(searched, optics)

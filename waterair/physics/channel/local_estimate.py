@@ -32,7 +32,7 @@ from waterair.physics.channel.light import LightSamples
 from waterair.physics.channel.model import LinkEnds
 from waterair.physics.channel.montecarlo import MonteCarloLight, RayEstimate
 from waterair.physics.channel.rays import FEWEST_ITERATIONS, departures, surface_hits
-from waterair.physics.optics import transverse_frame, water_transmittance
+from waterair.physics.optics import per_link, transverse_frame, water_transmittance
 from waterair.physics.surface import Harmonics
 
 
@@ -175,7 +175,8 @@ def local_estimate(
         count = min(chunk, rays - start)
         draws = torch.randn(batch, count, 2, generator=generator, dtype=torch.float64, device=generator.device)
         disk = torch.rand(batch, count, points, 2, generator=generator, dtype=torch.float64, device=generator.device)
-        tangent, disk = (width * draws).to(device=device, dtype=dtype), disk.to(device=device, dtype=dtype)
+        tangent = (per_link(width, draws) * draws).to(device=device, dtype=dtype)
+        disk = disk.to(device=device, dtype=dtype)
         rho, phi = radius * torch.sqrt(disk[..., 0]), 2.0 * math.pi * disk[..., 1]
         offset = (rho * torch.cos(phi)).unsqueeze(-1) * a1[:, None, None, :] + (rho * torch.sin(phi)).unsqueeze(
             -1

@@ -30,7 +30,14 @@ from waterair.physics.channel.light import LightSamples, pointed_gains
 from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.channel.ray_tube import calm_sea_reference
 from waterair.physics.channel.rays import departures, surface_hits
-from waterair.physics.optics import beam_divergence, refract, transverse_frame, unit_vector, water_transmittance
+from waterair.physics.optics import (
+    beam_divergence,
+    per_link,
+    refract,
+    transverse_frame,
+    unit_vector,
+    water_transmittance,
+)
 from waterair.physics.paths import PathSolution
 from waterair.physics.surface import Harmonics
 
@@ -189,9 +196,8 @@ def trace(
     pieces = []
     for start in range(0, rays, chunk):
         count = min(chunk, rays - start)
-        tangent = width * torch.randn(
-            batch, count, 2, generator=generator, dtype=torch.float64, device=generator.device
-        )
+        draws = torch.randn(batch, count, 2, generator=generator, dtype=torch.float64, device=generator.device)
+        tangent = per_link(width, draws) * draws
         tilt = torch.randn(batch, count, facets, 2, generator=generator, dtype=torch.float64, device=generator.device)
         tangent, tilt = tangent.to(device=device, dtype=dtype), tilt.to(device=device)
         facet_slopes = torch.einsum("bij,bnmj->bnmi", cholesky.to(device), tilt).to(dtype)

@@ -7,6 +7,7 @@ import math
 
 import torch
 
+from waterair.physics.optics import per_link
 from waterair.physics.surface import Harmonics, harmonic_sums
 
 INTERSECTION_ITERATIONS = 8
@@ -19,7 +20,7 @@ FEWEST_ITERATIONS = 4
 
 
 def departures(
-    axis: torch.Tensor, e1: torch.Tensor, e2: torch.Tensor, tangent: torch.Tensor, width: float
+    axis: torch.Tensor, e1: torch.Tensor, e2: torch.Tensor, tangent: torch.Tensor, width: float | torch.Tensor
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Unit directions ``[B, n, 3]`` from tangent-plane offsets ``tangent`` ``[B, n, 2]`` (rad) around ``axis``
     ``[B, 3]`` (frame ``e1``, ``e2``; the exponential map), and the proposal density q per steradian ``[B, n]`` of
@@ -30,7 +31,9 @@ def departures(
         along[..., :1] * e1.unsqueeze(1) + along[..., 1:] * e2.unsqueeze(1)
     )
     # q: a Gaussian in the tangent plane (exponential map), per unit solid angle
-    proposal = torch.exp(-0.5 * (tangent**2).sum(-1) / width**2) / (2.0 * math.pi * width**2) * angle / torch.sin(angle)
+    variance = width**2  # in float64 from a per-link tensor, as from a float, then in the offsets' dtype
+    gaussian = torch.exp(-0.5 * (tangent**2).sum(-1) / per_link(variance, angle))
+    proposal = gaussian / per_link(2.0 * math.pi * variance, angle) * angle / torch.sin(angle)
     return direction, proposal
 
 

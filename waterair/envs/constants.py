@@ -1,0 +1,90 @@
+"""The numbers of one environment configuration that the step uses (:class:`StepConstants`), as the
+kernel (:mod:`waterair.envs.kernel`) takes them: plain Python values, each link's own beam divergence put in
+per step (:meth:`StepConstants.for_links`), and the copy a compiled step takes (:meth:`StepConstants.traced`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import torch
+
+from waterair.envs.config import EnvConfig
+from waterair.envs.rewards import Reward
+from waterair.envs.sensors import Sensor
+from waterair.physics.channel import Beacon, ChannelModel, Transceiver
+from waterair.physics.optics import traced
+from waterair.physics.paths import FixedNewtonOptions
+
+
+@dataclass(frozen=True)
+class StepConstants:
+    """The numbers of one environment configuration that the step uses (all plain Python values)."""
+
+    optics: Transceiver
+    sensor: Sensor
+    reward: Reward
+    solver: FixedNewtonOptions
+    tolerance: float
+    action_mode: str
+    max_tilt: float
+    residual: float
+    residual_base: str
+    slew_step: float
+    dt: float
+    episode_seconds: float
+    max_steps: int
+    vertical_distance: float
+    channel: ChannelModel
+    replicas: int = 1
+    """The batch's copies of its links (``env.replicas``): the channel computes what does not depend on the
+    pointing once per link of them."""
+    beacon: Beacon | None = None
+    """The drone's beacon where the step reads it (``EnvConfig.senses_beacon``); None: its reading stays 0."""
+
+    @classmethod
+    def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward, channel: ChannelModel) -> StepConstants:
+        solver = FixedNewtonOptions(iterations=config.newton_iterations)
+        return cls(
+            optics=channel.optics,
+            sensor=sensor,
+            reward=reward,
+            solver=solver,
+            tolerance=solver.tolerance(getattr(torch, config.dtype)),
+            action_mode=config.action_mode,
+            max_tilt=config.max_tilt,
+            residual=math.sin(math.radians(config.residual_deg)),
+            residual_base=config.residual_base,
+            slew_step=math.sin(math.radians(config.max_slew_deg_s * config.dt)),
+            dt=config.dt,
+            episode_seconds=config.episode_seconds,
+            max_steps=config.max_steps,
+            vertical_distance=config.geometry.tx_depth + config.geometry.rx_height,
+            channel=channel,
+            replicas=config.replicas,
+            beacon=config.beacon if config.senses_beacon else None,
+        )
+
+    def for_links(self, divergence: torch.Tensor) -> StepConstants:
+        """These constants for links with their own beam divergence ω_D ``[B]`` (rad; the state's): every gain
+        the step computes and its misalignment read link b's for link b (:meth:`Transceiver.for_links`)."""
+        optics = self.optics.for_links(divergence)
+        return replace(self, optics=optics, channel=replace(self.channel, optics=optics))
+
+    def traced(self, device: torch.device) -> StepConstants:
+        """These constants as the compiled step takes them: the numbers that differ between an evaluation's
+        environments as 0-dim tensors on ``device``: the beam divergence in the optics and the channel's
+        (:meth:`Transceiver.traced`), the sensor's noise levels and threshold (:meth:`Sensor.traced`) and the
+        residual's range. A graph then serves every value of them, and is the same graph whichever value a
+        process compiled first: a float would be compiled in, and compiled symbolic only once torch had seen it
+        change (in that process, or in an earlier one of the same job), so the graphs, and the compile cache
+        they could share between processes, depended on the order in which groups were run."""
+        optics = self.optics.traced(device)
+        return replace(
+            self,
+            optics=optics,
+            channel=replace(self.channel, optics=optics),
+            sensor=self.sensor.traced(device),
+            residual=traced(self.residual, device),  # type: ignore[arg-type]  # a tensor only in the compiled step's copy
+        )
