@@ -139,7 +139,7 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert {p.name for p in written} >= {"metrics.json", "metrics.csv", "report.md"}
 
     data = json.loads((tmp_path / "metrics.json").read_text())
-    assert data["schema_version"] == 4
+    assert data["schema_version"] == 5
     assert data["link"]["power_w"] == 0.05 and data["link"]["fec_power"] == pytest.approx(3.16e-8, rel=0.01)
     labels = [p["label"] for p in data["policies"]]
     references = ["tracking", "beacon_tracker", "aoa_tracker", "intensity_dither", "flat_snell", "straight_facing"]
@@ -175,6 +175,12 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     s1 = next(r for r in data["rows"] if r["scenario"] == "S1" and r["policy"] == labels[1])
     assert "| outage | mean BER | rate (Mbit/s) |" in report and "in outage below P_r = 31.6 nW" in report
     assert f"| {s1['outage']:.3%} [" in report and f"| {s1['ber']:.2g} | {s1['rate'] / 1e6:.3g} |" in report
+    # S1's 12 steps of 50 ms: 10 of acquisition and 2 of tracking, reported apart; S2's 8 are all acquisition
+    acquired = f"| {labels[1]} | {s1['acquisition_ratio_to_ub']:.3f} | {s1['acquisition_rate'] / 1e6:.3g} |"
+    assert acquired in report and math.isfinite(s1["tracking_rate_held_999"])
+    s2 = next(r for r in data["rows"] if r["scenario"] == "S2" and r["policy"] == labels[1])
+    assert s2["acquisition_ratio_to_ub"] == s2["ratio_to_ub"] and math.isnan(s2["tracking_rate_held_999"])
+    assert "Acquisition (the first 0.5 s of each realisation) and tracking (the rest) apart" in report
 
 
 def _same_point(a: dict, b: dict) -> bool:
@@ -204,6 +210,7 @@ def test_the_divergence_study_writes_its_tables_figures_and_power_sweep_on_its_o
         by_hand = 10 * math.log10(row["mean_gain"] * per_gain * 1e3) if row["mean_gain"] > 0 else -math.inf
         assert row["received_power_dbm"] == pytest.approx(by_hand, abs=1e-9)
         assert 0.0 <= row["rate_held"] <= row["rate"] / 0.99 + 1e-6 and row["rate"] <= 2.0e9  # the 1 GHz front end
+        assert row["rate_held_999"] <= row["rate_held"]
         bound = next(r for r in data["rows"] if r["policy"] == "upper_bound" and _same_point(r, row))
         assert row["received_power_dbm"] <= bound["received_power_dbm"] + 1e-4
     # each policy's best divergence is where its mean rate is highest

@@ -7,7 +7,9 @@ import torch
 
 from waterair.evaluation.metrics import (
     METRICS,
+    PHASE_METRICS,
     fade_probability,
+    phase_metrics,
     ratio_to_upper_bound,
     scenario_metrics,
     sigma2_diff,
@@ -50,6 +52,8 @@ def test_link_metrics_are_the_budget_of_each_step_and_outage_starts_at_the_fec_p
     # the rate held 99 % of the time: 1 % of the 240 steps (2.4) sustain less, by the sorted list
     ordered = delivered.max_bit_rate.flatten().sort().values
     assert ordered[2] <= m["rate_held"] <= ordered[3] and m["rate_held"] < m["rate"]
+    # held 99.9 % of the time: 0.24 of the 240 steps sustain less, between the two slowest
+    assert ordered[0] <= m["rate_held_999"] <= ordered[1] and m["rate_held_999"] <= m["rate_held"]
 
 
 def test_ratio_to_upper_bound_is_a_ratio_of_means_not_a_mean_of_ratios():
@@ -66,7 +70,7 @@ def test_scenario_metrics_point_values_match_the_plain_definitions():
     valid = torch.rand(8, 50, generator=generator) > 0.2
     m = scenario_metrics(gain, upper, reference, valid)
     named = (*METRICS, "received_power_dbm")
-    assert {f"{k}{suffix}" for k in named for suffix in ("", "_lo", "_hi")} | {"rate_held"} == set(m)
+    assert {f"{k}{suffix}" for k in named for suffix in ("", "_lo", "_hi")} | {"rate_held", "rate_held_999"} == set(m)
     assert m["mean_gain"] == pytest.approx(gain.mean().item(), rel=1e-12)
     assert m["ratio_to_ub"] == pytest.approx((gain.mean() / upper.mean()).item(), rel=1e-12)
     assert m["sigma2_diff"] == pytest.approx((upper - gain).var(unbiased=False).item(), rel=1e-9)
@@ -105,3 +109,24 @@ def test_no_valid_path_anywhere_gives_ratio_zero_not_nan():
     m = scenario_metrics(zeros, zeros, torch.ones(3), torch.zeros(3, 4, dtype=torch.bool))
     assert m["ratio_to_ub"] == 0.0 and m["valid_share"] == 0.0 and m["fade_10db"] == 1.0
     assert m["outage"] == 1.0 and m["ber"] == 0.5 and m["rate"] == 0.0
+
+
+def test_the_acquisition_and_the_tracking_are_measured_apart():
+    """The first 0.5 s (10 steps of 50 ms) against the rest: each phase's metrics are those of its own steps
+    alone, so a policy that is blind while it acquires and perfect after shows a ratio of 0 and 1."""
+    generator = torch.Generator().manual_seed(2)
+    upper = 1.0 + torch.rand(5, 60, generator=generator, dtype=torch.float64)
+    gain = upper.clone()
+    gain[:, :10] = 0.0
+    reference, valid = torch.ones(5, dtype=torch.float64), torch.ones(5, 60, dtype=torch.bool)
+    link = LinkBudget()
+    phases = phase_metrics(gain, upper, reference, valid, 0.05, link=link)
+    assert phases["acquisition_ratio_to_ub"] == 0.0 and phases["tracking_ratio_to_ub"] == 1.0
+    tracking = scenario_metrics(gain[:, 10:], upper[:, 10:], reference, valid[:, 10:], link=link)
+    for name in PHASE_METRICS:
+        assert phases[f"tracking_{name}"] == tracking[name], name
+    assert phases["acquisition_rate"] == 0.0 < phases["tracking_rate_held_999"]
+    assert {"tracking_rate_lo", "acquisition_outage_hi"} <= set(phases) and "tracking_rate_held_lo" not in phases
+    # a trace no longer than the acquisition has no tracking
+    short = phase_metrics(gain[:, :8], upper[:, :8], reference, valid[:, :8], 0.05, link=link)
+    assert math.isnan(short["tracking_rate_held"]) and short["acquisition_ratio_to_ub"] == 0.0

@@ -48,8 +48,8 @@ def best_divergences(rows: list[dict], scenario: Scenario) -> list[dict]:
     """For every (wind, offset, policy) of ``scenario``: the divergence whose mean rate is highest.
 
     Each entry holds ``wind``, ``offset_ratio``, ``policy``, ``divergence`` (rad), and there ``rate``,
-    ``rate_held``, ``received_power_dbm`` and ``outage``. A tie (every divergence at the receiver's top rate)
-    goes to the widest beam, the one that forgives pointing most.
+    ``rate_held``, ``rate_held_999``, ``received_power_dbm`` and ``outage``. A tie (every divergence at the
+    receiver's top rate) goes to the widest beam, the one that forgives pointing most.
     """
     best: dict[tuple, dict] = {}
     for row in rows:
@@ -60,7 +60,7 @@ def best_divergences(rows: list[dict], scenario: Scenario) -> list[dict]:
         better = held is None or (row["rate"], row["divergence"]) > (held["rate"], held["divergence"])
         if better:
             best[key] = row
-    keys = ("rate", "rate_held", "received_power_dbm", "outage", "divergence")
+    keys = ("rate", "rate_held", "rate_held_999", "received_power_dbm", "outage", "divergence")
     return [{"wind": w, "offset_ratio": o, "policy": p, **{k: row[k] for k in keys}} for (w, o, p), row in best.items()]
 
 

@@ -16,6 +16,13 @@ from waterair.physics.link import LinkBudget, link_performance
 
 HELD_SHARE = 0.99
 """``rate_held`` is the bit rate the link sustains in this share of steps (its 1st percentile)."""
+STRICT_HELD_SHARE = 0.999
+"""``rate_held_999`` is the bit rate the link sustains in this share of steps (its 0.1st percentile)."""
+ACQUISITION_SECONDS = 0.5
+"""The first seconds of an episode, when a controller finds the link (its first readings come from the
+gimbals parked at the reset): :func:`phase_metrics` reports them apart from the tracking after."""
+PHASE_METRICS = ("ratio_to_ub", "rate", "outage", "rate_held", "rate_held_999")
+"""What :func:`phase_metrics` reports of each phase, ``acquisition_<name>`` and ``tracking_<name>``."""
 FADE_FRACTION = 0.1
 """A step is a 10 dB fade when G < 0.1 G_0 (docs/model.md §8): a fade, not an outage, which the link budget defines."""
 
@@ -55,7 +62,8 @@ METRICS = (
 """What :func:`scenario_metrics` reports, each with ``_lo`` / ``_hi`` bounds: ``ber`` the mean bit error
 rate, ``outage`` the share of steps with BER above the FEC limit, ``rate`` the mean bit rate at the FEC
 limit (bit/s), all of the link budget. Beside them, :func:`scenario_metrics` gives ``received_power_dbm`` (the mean
-received power, with bounds) and ``rate_held`` (the rate held in :data:`HELD_SHARE` of steps, no bounds)."""
+received power, with bounds), ``rate_held`` and ``rate_held_999`` (the rates held in :data:`HELD_SHARE` and
+:data:`STRICT_HELD_SHARE` of steps, no bounds)."""
 
 
 def scenario_metrics(
@@ -80,8 +88,8 @@ def scenario_metrics(
     draws of whole realisations (seeded, so a report is reproducible). Per-realisation sums are
     resampled, which is exact and costs O(resamples × R).
     Also ``received_power_dbm`` (10 log10 of the mean P_r in mW, bounds from the mean gain's: P_r is linear
-    in G) and ``rate_held``, the bit rate sustained in :data:`HELD_SHARE` of all R·T steps (a percentile
-    of steps, given without bounds).
+    in G), ``rate_held`` and ``rate_held_999``, the bit rates sustained in :data:`HELD_SHARE` and
+    :data:`STRICT_HELD_SHARE` of all R·T steps (percentiles of steps, given without bounds).
     """
     link = link or LinkBudget()
     delivered = link_performance(gain.double(), link)
@@ -100,7 +108,37 @@ def scenario_metrics(
         out[f"{name}_hi"] = bounds[1, index].item() if count > 1 else float("nan")
     for suffix in ("", "_lo", "_hi"):
         out[f"received_power_dbm{suffix}"] = power_dbm(out[f"mean_gain{suffix}"] * link.received_power_per_gain)
-    out["rate_held"] = torch.quantile(delivered.max_bit_rate.flatten(), 1.0 - HELD_SHARE).item()
+    rates = delivered.max_bit_rate.flatten()
+    out["rate_held"] = torch.quantile(rates, 1.0 - HELD_SHARE).item()
+    out["rate_held_999"] = torch.quantile(rates, 1.0 - STRICT_HELD_SHARE).item()
+    return out
+
+
+def phase_metrics(
+    gain: torch.Tensor,
+    upper: torch.Tensor,
+    reference: torch.Tensor,
+    valid: torch.Tensor,
+    dt: float,
+    *,
+    link: LinkBudget | None = None,
+    **bootstrap,
+) -> dict[str, float]:
+    """:data:`PHASE_METRICS` (with bounds where :func:`scenario_metrics` gives them) of the acquisition, the first
+    :data:`ACQUISITION_SECONDS` of each realisation's steps (``dt`` s each), and of the tracking after it, as
+    ``acquisition_<name>`` and ``tracking_<name>``; arguments as :func:`scenario_metrics`. Traces no longer than
+    the acquisition have no tracking: NaN."""
+    split = min(round(ACQUISITION_SECONDS / dt), gain.shape[-1])
+    out = {}
+    for phase, steps in (("acquisition", slice(None, split)), ("tracking", slice(split, None))):
+        if gain[..., steps].shape[-1] > 0:
+            metrics = scenario_metrics(
+                gain[..., steps], upper[..., steps], reference, valid[..., steps], link=link, **bootstrap
+            )
+        for name in PHASE_METRICS:
+            for suffix in ("", "_lo", "_hi") if name in METRICS else ("",):
+                empty = gain[..., steps].shape[-1] == 0
+                out[f"{phase}_{name}{suffix}"] = math.nan if empty else metrics[f"{name}{suffix}"]
     return out
 
 

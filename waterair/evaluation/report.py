@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
@@ -12,14 +13,15 @@ from waterair.core.files import atomic_write_csv, atomic_write_text
 from waterair.evaluation import plots
 from waterair.evaluation.divergence import best_divergences, learned_gains
 from waterair.evaluation.figures import physics_figures
-from waterair.evaluation.metrics import METRICS
+from waterair.evaluation.metrics import ACQUISITION_SECONDS, METRICS, PHASE_METRICS
 from waterair.evaluation.runner import UPPER_BOUND, Evaluation
 from waterair.physics.link import fec_power
 
-SCHEMA_VERSION = 4
-"""4: ``divergence``, ``received_power_dbm`` and ``rate_held`` per row, S5 and its ``power_sweep``; 3: the link
-budget's ``ber``, ``outage`` and ``rate`` per row, ``link`` at the top; 2's ``outage`` (P(G < 0.1 G_0)) is
-``fade_10db``."""
+SCHEMA_VERSION = 5
+"""5: ``rate_held_999`` and the acquisition's and the tracking's metrics apart (``acquisition_<name>``,
+``tracking_<name>``) per row; 4: ``divergence``, ``received_power_dbm`` and ``rate_held`` per row, S5 and its
+``power_sweep``; 3: the link budget's ``ber``, ``outage`` and ``rate`` per row, ``link`` at the top; 2's
+``outage`` (P(G < 0.1 G_0)) is ``fade_10db``."""
 AXES = ("wind", "offset_ratio", "offset_azimuth_deg")
 """The three coordinates of a scenario point, in order."""
 ROW_KEYS = (
@@ -32,6 +34,13 @@ ROW_KEYS = (
     "kind",
     *(f"{name}{suffix}" for name in (*METRICS, "received_power_dbm") for suffix in ("", "_lo", "_hi")),
     "rate_held",
+    "rate_held_999",
+    *(
+        f"{phase}_{name}{suffix}"
+        for phase in ("acquisition", "tracking")
+        for name in PHASE_METRICS
+        for suffix in (("", "_lo", "_hi") if name in METRICS else ("",))
+    ),
     "reference_gain",
     "realisations",
     "steps",
@@ -166,6 +175,7 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
                     f"| {r['outage']:.3%} [{r['outage_lo']:.3%}, {r['outage_hi']:.3%}] | {r['ber']:.2g} "
                     f"| {r['rate'] / 1e6:.3g} | {r['fade_10db']:.2%} | {r['valid_share']:.1%} |"
                 )
+            lines += ["", *_phase_lines(result, scenario, point)]
         else:
             column = {"offset_ratio": "offset", "wind": "U10 (m/s)", "offset_azimuth_deg": "azimuth (deg)"}[
                 scenario.axis
@@ -188,6 +198,29 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
     return atomic_write_text(path, "\n".join(lines))
 
 
+def _phase_lines(result: Evaluation, scenario, point) -> list[str]:
+    """The acquisition (an episode's first :data:`ACQUISITION_SECONDS`) and the tracking after it, apart."""
+    lines = [
+        f"Acquisition (the first {ACQUISITION_SECONDS:g} s of each realisation) and tracking (the rest) apart: ratio "
+        "to the upper bound, mean rate and the rates held in 99 % and 99.9 % of the phase's steps (Mbit/s).",
+        "",
+    ]
+    rows = []
+    for policy in result.policies:
+        r = result.row(scenario.name, policy["label"], point)
+        cells = [policy["label"]]
+        for phase in ("acquisition", "tracking"):
+            if math.isnan(r[f"{phase}_ratio_to_ub"]):
+                cells += ["–"] * 4
+                continue
+            cells += [f"{r[f'{phase}_ratio_to_ub']:.3f}"]
+            cells += [f"{r[f'{phase}_{name}'] / 1e6:.3g}" for name in ("rate", "rate_held", "rate_held_999")]
+        rows.append(cells)
+    header = ("policy", *(f"{phase} {what}" for phase in ("acquisition", "tracking")
+                          for what in ("ratio", "rate", "held 99 %", "held 99.9 %")))  # fmt: skip
+    return lines + _table(header, rows)
+
+
 def _divergence_lines(result: Evaluation, scenario) -> list[str]:
     """S5: rate, held rate and outage per divergence at every point; each policy's best divergence; what the
     learned policies gain there; outage against transmit power."""
@@ -196,7 +229,7 @@ def _divergence_lines(result: Evaluation, scenario) -> list[str]:
     lines = [
         f"The study's link: {_link_line(link)} (at ω_D = {scenario.divergences[0] * 1e3:g} mrad; a narrower beam "
         "puts more power on the receiver per unit of gain, J_0/P_t = 2/(π ω_D′²)). Each cell: mean bit rate at "
-        "the FEC limit (Mbit/s), the rate held in 99 % of steps, and the outage.",
+        "the FEC limit (Mbit/s), the rates held in 99 % and in 99.9 % of steps, and the outage.",
         "",
     ]
     for wind, offset, azimuth in scenario.points:
@@ -204,17 +237,22 @@ def _divergence_lines(result: Evaluation, scenario) -> list[str]:
         lines += ["| ω_D (mrad) | " + " | ".join(labels) + " |", "|---" * (len(labels) + 1) + "|"]
         for divergence in scenario.divergences:
             rows = [result.row(scenario.name, label, (wind, offset, azimuth), divergence) for label in labels]
-            cells = [f"{r['rate'] / 1e6:.3g}<br>{r['rate_held'] / 1e6:.3g}<br>{r['outage']:.1%}" for r in rows]
+            cells = [
+                f"{r['rate'] / 1e6:.3g}<br>{r['rate_held'] / 1e6:.3g}<br>{r['rate_held_999'] / 1e6:.3g}<br>"
+                f"{r['outage']:.1%}"
+                for r in rows
+            ]
             lines.append(f"| {divergence * 1e3:g} | " + " | ".join(cells) + " |")
         lines.append("")
     best = best_divergences(result.rows, scenario)
     lines += ["### Each policy's best divergence", "", "Where its mean rate is highest (ties: the widest beam).", ""]
     lines += _table(
-        ("U10 (m/s)", "offset", "policy", "ω_D (mrad)", "rate (Mbit/s)", "held 99 %", "P_r (dBm)", "outage"),
+        ("U10 (m/s)", "offset", "policy", "ω_D (mrad)", "rate (Mbit/s)", "held 99 %", "held 99.9 %", "P_r (dBm)",
+         "outage"),
         [
             (f"{b['wind']:g}", f"{b['offset_ratio']:.0%}", b["policy"], f"{b['divergence'] * 1e3:g}",
-             f"{b['rate'] / 1e6:.3g}", f"{b['rate_held'] / 1e6:.3g}", f"{b['received_power_dbm']:.1f}",
-             f"{b['outage']:.2%}")
+             f"{b['rate'] / 1e6:.3g}", f"{b['rate_held'] / 1e6:.3g}", f"{b['rate_held_999'] / 1e6:.3g}",
+             f"{b['received_power_dbm']:.1f}", f"{b['outage']:.2%}")
             for b in best
         ],
     )  # fmt: skip

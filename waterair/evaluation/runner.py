@@ -29,7 +29,7 @@ from waterair.envs.controllers import CONTROLLERS
 from waterair.envs.link import link_budget
 from waterair.envs.stepper import varying_environments
 from waterair.evaluation.divergence import at_divergence, outage_against_power, scenario_link
-from waterair.evaluation.metrics import scenario_metrics
+from waterair.evaluation.metrics import phase_metrics, scenario_metrics
 from waterair.evaluation.per_divergence import labelled, name_policies, serving, trained_divergence
 from waterair.evaluation.policies import INTERFACE_KEYS, LearnedPolicy, as_list, checkpoint_sources, load_policy
 from waterair.evaluation.rollouts import REFERENCES, rollout_policies
@@ -116,7 +116,7 @@ def compare_policies(
         )
     first = next(iter(runs.values()))
     runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
-    return {label: _point_metrics(t, 0, bootstrap, link) for label, t in runs.items()}
+    return {label: _point_metrics(t, 0, bootstrap, link, env_config.dt) for label, t in runs.items()}
 
 
 @dataclass
@@ -334,7 +334,7 @@ def _collect(
                     "divergence": divergence,
                     "policy": label,
                     "kind": kinds[label],
-                    **_point_metrics(t, index, bootstrap, link),
+                    **_point_metrics(t, index, bootstrap, link, result.dt),
                     "reference_gain": t["reference_gain"][:, index].double().mean().item(),
                     "realisations": scenario.realisations,
                     "steps": scenario.steps,
@@ -351,18 +351,14 @@ def _collect(
         result.power_rows += outage_against_power(scenario, {label: runs[label] for label in kinds}, link, bootstrap)
 
 
-def _point_metrics(traces: dict[str, torch.Tensor], index: int, bootstrap: Bootstrap, link: LinkBudget) -> dict:
-    """Every metric of point ``index`` of one policy's traces ``[R, P, T]``, the link's of ``link``."""
-    return scenario_metrics(
-        traces["gain"][:, index],
-        traces["gain_upper_bound"][:, index],
-        traces["reference_gain"][:, index],
-        traces["path_valid"][:, index],
-        link=link,
-        level=bootstrap.level,
-        resamples=bootstrap.resamples,
-        seed=bootstrap.seed,
-    )
+def _point_metrics(
+    traces: dict[str, torch.Tensor], index: int, bootstrap: Bootstrap, link: LinkBudget, dt: float
+) -> dict:
+    """Every metric of point ``index`` of one policy's traces ``[R, P, T]`` (steps of ``dt`` s), the link's of
+    ``link``: over all steps, and of the acquisition and the tracking apart (:func:`phase_metrics`)."""
+    point = tuple(traces[key][:, index] for key in ("gain", "gain_upper_bound", "reference_gain", "path_valid"))
+    settings = {"link": link, "level": bootstrap.level, "resamples": bootstrap.resamples, "seed": bootstrap.seed}
+    return {**scenario_metrics(*point, **settings), **phase_metrics(*point, dt, **settings)}
 
 
 def _describe(policies: Sequence[LearnedPolicy], base: EnvConfig) -> dict:
