@@ -53,8 +53,9 @@ def varying_environments() -> Iterator[None]:
     a structure of its own), and nothing else ever is.
 
     Outside it a graph is specialised to its environment (training: one batch, one configuration). The
-    numbers an evaluation's groups differ in (ω_D, which S5 sweeps, the sensor's noise levels and threshold,
-    the residual's range) are never constants of the graph (:meth:`StepConstants.traced`). torch's automatic
+    numbers an evaluation's groups differ in (ω_D, which S5 sweeps and the state holds per link, the sensor's
+    noise levels and threshold, the residual's range) are never constants of the graph
+    (:meth:`StepConstants.traced`). torch's automatic
     dynamic shapes are off in the block: they would make symbolic whatever a process, or an earlier process
     on the machine, had seen change (the latency's packets, the harmonics of another sea), so a graph would
     depend on what ran before it, and a later process (evaluate.py after training's closing evaluation, the
@@ -94,7 +95,7 @@ class Stepper:
         self.generator = generator
         pick = compiled if compile_kernel else functools.partial(getattr, kernel)
         self._step, self._finish, self._conclude = pick("step"), pick("finish"), pick("conclude")
-        # what the compiled functions get: ω_D a tensor, so that one graph serves every divergence
+        # what the compiled functions get: the numbers that vary between environments as tensors (one graph)
         self.traced = constants.traced(torch.device(device)) if compile_kernel else constants
 
     def __call__(self, surface: WaveSurface, state: dict, action: torch.Tensor, noise):
