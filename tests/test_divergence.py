@@ -13,6 +13,8 @@ from waterair.envs import draws
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import CONTROLLERS
 from waterair.envs.env import WaterAirEnv
+from waterair.evaluation.runner import compare_policies
+from waterair.evaluation.scenarios import Scenario
 
 SPREAD = (0.005, 0.02, 0.1)
 """Divergences (rad) a mixed batch holds, one per link: the narrow end, the middle and the wide end of training's."""
@@ -107,3 +109,15 @@ def test_the_divergence_observed_is_linear_in_its_logarithm_and_exact_in_the_sta
 def test_a_divergence_out_of_range_names_the_key_the_value_and_the_range(overrides, message):
     with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("(", r"\(")):
         EnvConfig.from_mapping(overrides)
+
+
+def test_an_evaluation_runs_every_link_at_the_scenarios_divergence_whatever_the_training_drew():
+    """Training's closing evaluation takes the training environment, its divergence range too: the rollouts put
+    every link at optics.divergence, the divergence its link budget converts gain at, as for any scenario."""
+    scenario = Scenario("train", "training point", None, ((12.0, 0.1, 0.0),), 2, 6, 7)
+    base = EnvConfig(channel="single_path", sea={"n_wavenumbers": 24, "n_dir": 8}, optics={"divergence": 0.01})
+    ranged = base.replace(divergence_range=(0.005, 0.1))
+    fixed = compare_policies(base, {"flat": "flat_snell"}, scenario)
+    assert compare_policies(ranged, {"flat": "flat_snell"}, scenario) == fixed
+    wide = compare_policies(base.replace(optics={"divergence": 0.05}), {"flat": "flat_snell"}, scenario)
+    assert fixed["flat"]["mean_gain"] != wide["flat"]["mean_gain"]  # the divergence shows

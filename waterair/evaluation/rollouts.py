@@ -60,6 +60,8 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
             offset_range=None,
             offset_azimuth_range=None,
             wind_direction_range=None,
+            divergence_range=None,  # every link at the scenario's ω_D (optics.divergence), the link budget's
+            divergence_values=None,
         )
     )
     policies = [REFERENCES[policy](env) if isinstance(policy, str) else policy for _, policy in members]
