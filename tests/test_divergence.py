@@ -47,7 +47,9 @@ def test_a_batch_of_mixed_divergences_gives_each_link_what_a_batch_of_its_diverg
     optics' divergence (the same seas, geometry and sensor noise: none of them depends on ω_D), realistic
     sensing with the beacon read, residual actions on the beacon tracker: bit for bit, eagerly."""
     steps = 12
-    base = preset_config("beacon", "realistic", len(SPREAD), channel=channel, action_mode="residual")
+    base = preset_config(
+        "beacon", "realistic", len(SPREAD), channel=channel, action_mode="residual", divergence_range=None
+    )
     if channel == "full":
         base = base.replace(sea={"n_wavenumbers": 24, "n_dir": 8})
     if controller == "intensity_dither":

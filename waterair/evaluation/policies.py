@@ -36,16 +36,13 @@ SHIPPED = {
     "default": (),
     "intensity": ("env/observation=intensity",),
     "paper": ("+experiment=paper", *TRAINED_LATTICE),
-    "default_10mrad": ("env.optics.divergence=0.01", "env.residual_deg=1"),
 }
 """The shipped policies in :data:`ASSETS` (``NAME.pt``, ``NAME.yaml``, ``NAME_metrics.json``), which
 ``python evaluate.py`` evaluates when given no run or checkpoint, and the ``train.py`` overrides
 each was trained with (on defaults otherwise: ``default`` and ``intensity`` on the measured-slope sea and
-the full channel, ``paper`` on the paper's physics; docs/results.md)."""
-PER_DIVERGENCE = {"default_10mrad": "default"}
-"""Shipped policies trained at another beam divergence, and the policy they act for there: one label, the one
-trained nearest each divergence acting (:mod:`waterair.evaluation.per_divergence`; ``default_10mrad`` below
-22 mrad, the log midpoint of 10 and 50, ``default`` above; docs/results.md, "S5")."""
+the full channel, ``paper`` on the paper's physics; docs/results.md). ``default`` serves every beam divergence
+(it observes its link's); policies trained at one divergence each may still share a label and act as one
+(:mod:`waterair.evaluation.per_divergence`)."""
 
 
 def shipped_policy(name: str) -> Path:
@@ -130,6 +127,6 @@ def as_list(value) -> list[str]:
 def _default_label(path: Path, config: DictConfig | None) -> str:
     agent = config.agent.name if config is not None and "agent" in config else "policy"
     if path.resolve().parent == ASSETS and path.stem in SHIPPED:
-        return f"{agent} {PER_DIVERGENCE.get(path.stem, path.stem)}"
+        return f"{agent} {path.stem}"
     run_dir = path.parent.parent if path.parent.name == "checkpoints" else path.parent
     return f"{agent} {run_dir.name}"
