@@ -124,12 +124,3 @@ def test_a_loss_target_that_does_not_match_the_agent_is_a_one_line_error():
 @pytest.mark.parametrize("name", list(SHIPPED))
 def test_each_shipped_policy_config_is_a_valid_config(name):
     validate(OmegaConf.load(ROOT / "waterair" / "assets" / f"{name}.yaml"))
-
-
-def test_the_snr_reward_with_a_divergence_per_link_is_a_one_line_error():
-    """The link reward converts gain to power through one budget, at one ω_D: links of their own divergences
-    would be rewarded through another beam's power."""
-    validate(compose_config("config", ["reward=snr"]))
-    with pytest.raises(ValueError, match=r"^reward.name = 'snr' reads one link budget.*env.divergence_range"):
-        validate(compose_config("config", ["reward=snr", "env.divergence_range=[0.005,0.1]"]))
-    validate(compose_config("config", ["env.divergence_range=[0.005,0.1]"]))

@@ -5,12 +5,14 @@ Every reference is written here in float64 from the textbook formula, not read f
 
 import dataclasses
 import math
+from dataclasses import replace
 
 import pytest
 import torch
 from conftest import ROOT, compose_config
 from omegaconf import OmegaConf
 
+from waterair.envs.rewards import Reward
 from waterair.physics.channel import LinkGeometry, Transceiver, calm_sea_gain
 from waterair.physics.link import (
     BACKGROUND_RADIANCE,
@@ -258,3 +260,25 @@ def test_background_power_is_radiance_times_band_transmittance_and_etendue():
     # 1 W/(m² sr nm) over 1 nm, a perfect filter, a 1 m² aperture and a hemisphere of view: 2π W.
     diameter = math.sqrt(4.0 / math.pi)
     assert background_power(1.0, 1.0, 1.0, diameter, math.pi / 2) == pytest.approx(2.0 * math.pi, rel=1e-12)
+
+
+def test_the_received_power_of_links_with_their_own_divergence_is_each_ones_budget():
+    """P_r per link through each link's beam (J_0/P_t = 2/(π ω_D′²)) equals the budget at that divergence, bit
+    for bit in float32 and float64, and the snr reward follows it: a narrower beam puts more power on the
+    receiver for the same gain."""
+    divergences = torch.tensor([0.005, 0.02, 0.1], dtype=torch.float64)
+    budget = LinkBudget()
+    for dtype in (torch.float32, torch.float64):
+        gain = torch.tensor([[2e-3, 1e-4], [3e-3, 0.0], [5e-4, 1e-2]], dtype=dtype)
+        per_link = received_power(gain, budget, divergences)
+        assert per_link.dtype == dtype
+        for row, value in enumerate(divergences.tolist()):
+            alone = replace(budget, optics=Transceiver(divergence=value))
+            assert torch.equal(per_link[row], received_power(gain[row], alone))
+    reward = Reward(name="snr", link=budget)
+    gain = torch.full((3,), 1e-3)
+    rewarded = reward(gain, gain=gain, divergence=divergences)
+    assert rewarded[0] > rewarded[1] > rewarded[2]
+    assert (
+        rewarded[2] == Reward(name="snr", link=replace(budget, optics=Transceiver(divergence=0.1)))(gain, gain=gain)[2]
+    )

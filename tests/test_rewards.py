@@ -109,10 +109,12 @@ def test_reward_snr_from_the_command_line_steps_the_env_on_the_links_budget():
     steps = env.rollout(3, break_when_any_done=False)
     nxt = steps["next"]
     config = env.base_env.config
-    misalignment = (nxt["alpha_d"] / config.optics.divergence + nxt["alpha_a"] / config.optics.half_fov) * nxt[
-        "path_valid"
-    ]
-    expected = reward.of_gain(nxt["gain"]) - 0.05 * misalignment
+    # the defaults give each link its own beam: the misalignment in its beam widths, the power through its beam
+    divergence = nxt["divergence"]
+    assert config.divergence_range is not None and divergence.unique().numel() > 1
+    beams = nxt["alpha_d"] / divergence.to(nxt["alpha_d"].dtype)
+    misalignment = (beams + nxt["alpha_a"] / config.optics.half_fov) * nxt["path_valid"]
+    expected = reward.of_gain(nxt["gain"], divergence) - 0.05 * misalignment
     torch.testing.assert_close(nxt["reward"].squeeze(-1), expected)
     with pytest.raises(ValueError, match=r"^link.power_w = -1"):
         validate(compose_config("config", ["reward=snr", "link.power_w=-1", *SMALL_ENV]))

@@ -285,7 +285,9 @@ def conclude(c: StepConstants, state: dict, moved: dict, solution: Solve, noise,
     outputs = {
         **measurement,
         "observation": observe(c, {**state, **new}),
-        "reward": c.reward(measurement["intensity"], misalignment(c, measurement), measurement["gain"]).unsqueeze(-1),
+        "reward": c.reward(
+            measurement["intensity"], misalignment(c, measurement), measurement["gain"], state["divergence"]
+        ).unsqueeze(-1),
         "truncated": (new["steps"] >= c.max_steps).unsqueeze(-1),
         "base_tilt": base_tilts(c, {**state, **new}),
     }

@@ -88,14 +88,19 @@ class Reward:
             object.__setattr__(self, "limit", (power, at_limit))
 
     def __call__(
-        self, intensity: torch.Tensor, misalignment: torch.Tensor | None = None, gain: torch.Tensor | None = None
+        self,
+        intensity: torch.Tensor,
+        misalignment: torch.Tensor | None = None,
+        gain: torch.Tensor | None = None,
+        divergence: torch.Tensor | None = None,
     ) -> torch.Tensor:
-        """Reward of intensity I ≥ 0 (any shape), or of the gain G (1/m², same shape; ``snr``), less
-        ``pointing`` × ``misalignment`` (same shape) when given; finite for every finite I in [0, 10]."""
+        """Reward of intensity I ≥ 0 (any shape), or of the gain G (1/m², same shape; ``snr``, through a beam of
+        each link's ``divergence`` ``[B]`` where given), less ``pointing`` × ``misalignment`` (same shape) when
+        given; finite for every finite I in [0, 10]."""
         if self.name == "snr":
             if gain is None:
                 raise ValueError("reward.name = 'snr' is a reward of the gain; call it with gain=")
-            reward = self.of_gain(gain)
+            reward = self.of_gain(gain, divergence)
         else:
             reward = self.of_intensity(intensity)
         if misalignment is None or self.pointing == 0.0:
@@ -112,11 +117,12 @@ class Reward:
         terms = torch.log1p(self.a * intensity) + torch.log10(self.b * clamped) + torch.exp(self.c * intensity)
         return self.gain * terms + self.bias
 
-    def of_gain(self, gain: torch.Tensor) -> torch.Tensor:
-        """The ``snr`` reward of channel gains G (1/m²): log10 SNR relative to the FEC limit, a slope below it."""
+    def of_gain(self, gain: torch.Tensor, divergence: torch.Tensor | None = None) -> torch.Tensor:
+        """The ``snr`` reward of channel gains G (1/m²): log10 SNR relative to the FEC limit, a slope below it;
+        the received power through each link's beam where ``divergence`` ``[B]`` is given, else the budget's."""
         assert self.link is not None  # __post_init__ guarantees it for snr
         limit, at_limit = self.limit
-        power = received_power(gain, self.link)
+        power = received_power(gain, self.link, divergence)
         above = torch.log10(snr(power.clamp(min=limit), *self._noise()) / at_limit)
         return torch.where(power >= limit, above, self.slope * (power / limit - 1.0))
 

@@ -23,7 +23,7 @@ from tensordict import TensorClass
 
 from waterair.core.validation import check_range
 from waterair.physics.channel import Transceiver
-from waterair.physics.optics import beam_divergence
+from waterair.physics.optics import Scalar, beam_divergence, per_link
 
 ELEMENTARY_CHARGE = 1.602176634e-19
 """q (C), exact in the SI since 2019."""
@@ -150,7 +150,12 @@ class LinkBudget:
     @property
     def received_power_per_gain(self) -> float:
         """P_r / G = T_f P_t (J_0/P_t) A_det (W m²), eq. (9.4): multiply by G for P_r."""
-        intensity = on_axis_intensity_per_watt(self.optics.divergence, self.optics.wavelength)
+        return self.power_per_gain(self.optics.divergence)
+
+    def power_per_gain(self, divergence: Scalar) -> Scalar:
+        """P_r / G (W m²), eq. (9.4), for a beam of divergence ω_D (rad): a float, or one per link ``[B]``
+        (float64; J_0/P_t = 2/(π ω_D′²) is the beam's, the rest the budget's)."""
+        intensity = on_axis_intensity_per_watt(divergence, self.optics.wavelength)
         return self.filter_transmittance * self.power_w * intensity * self.detector_area
 
     @property
@@ -201,7 +206,7 @@ def link_performance(gain: torch.Tensor, budget: LinkBudget) -> LinkPerformance:
     )
 
 
-def on_axis_intensity_per_watt(divergence: float, wavelength: float) -> float:
+def on_axis_intensity_per_watt(divergence: Scalar, wavelength: float) -> Scalar:
     """J_0 / P_t = 2 / (π ω_D'²) (1/sr): the Gaussian beam's radiant intensity on its axis per watt, eq. (9.2).
 
     G_D (docs/model.md §4) is the beam's angular profile normalised to 1 on its axis; this is the
@@ -224,14 +229,18 @@ def detector_area(aperture_diameter: float, half_fov: float, concentrator_index:
     return aperture_area(aperture_diameter) * math.sin(half_fov) ** 2 / concentrator_index**2
 
 
-def received_power(gain: torch.Tensor, budget: LinkBudget) -> torch.Tensor:
+def received_power(gain: torch.Tensor, budget: LinkBudget, divergence: torch.Tensor | None = None) -> torch.Tensor:
     """P_r = T_f · P_t · (J_0/P_t) · G · A_det (W) on the detector, eq. (9.4).
 
     Args:
-        gain: channel gain G (1/m²), any shape (docs/model.md §4).
+        gain: channel gain G (1/m²), any shape (docs/model.md §4); ``[B, ...]`` with ``divergence``.
         budget: the link budget (its transmitter power, optics, aperture and filter).
+        divergence: each link's beam divergence ω_D (rad) ``[B]``, where links have their own; None: the
+            budget's optics'.
     """
-    return gain * budget.received_power_per_gain
+    if divergence is None:
+        return gain * budget.received_power_per_gain
+    return gain * per_link(budget.power_per_gain(divergence.double()), gain)
 
 
 def aperture_area(aperture_diameter: float) -> float:

@@ -28,11 +28,12 @@ or, for a number each link has its own of (the beam divergence), a ``[B]`` tenso
 
 
 def per_link(value: Scalar, like: torch.Tensor) -> Scalar:
-    """``value`` as it broadcasts against ``like`` ``[B, ...]``: a ``[B]`` tensor (one value per link) gets a unit
-    dimension for each of ``like``'s after the first, in ``like``'s dtype; a float or a 0-dim tensor is returned as
-    it is."""
-    if isinstance(value, torch.Tensor) and value.dim() == 1:  # in like's dtype, as a 0-dim tensor would act
-        return value.to(like.dtype).reshape(value.shape[0], *(1,) * (like.dim() - 1))
+    """``value`` as it broadcasts against ``like`` ``[B, ...]``, in ``like``'s dtype: a ``[B]`` tensor (one value per
+    link) gets a unit dimension for each of ``like``'s after the first, a tensor shaped as ``like`` stays so; a float
+    or a 0-dim tensor is returned as it is."""
+    if isinstance(value, torch.Tensor) and value.dim() >= 1:  # in like's dtype, as a 0-dim tensor would act
+        value = value.to(like.dtype)
+        return value.reshape(value.shape[0], *(1,) * (like.dim() - 1)) if value.dim() == 1 else value
     return value
 
 

@@ -52,13 +52,7 @@ def validate(cfg: DictConfig) -> None:
     env = EnvConfig.from_mapping({**values, "compile_kernel": False})  # true, false or auto: decided at the start
     # a run saved before the link group has none: its link metrics use the default budget
     link = link_budget(OmegaConf.to_container(cfg.link, resolve=True) if "link" in cfg else None, env)
-    reward = Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True), link=link)
-    if reward.name == "snr" and (env.divergence_range is not None or env.divergence_values is not None):
-        raise ValueError(
-            "reward.name = 'snr' reads one link budget, whose power per unit gain depends on the beam divergence: "
-            "it needs every link at env.optics.divergence (unset env.divergence_range and env.divergence_values), "
-            "or a reward of the intensity (reward=pointing)"
-        )
+    Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True), link=link)
     resolve_device(cfg.device)  # cuda without a CUDA device is an error now, not after the set-up
     check_threads(cfg.get("threads", AUTO_THREADS))  # a run saved before the key: auto
     check_int("seed", cfg.seed, 0, 2**63 - 1)
