@@ -150,7 +150,7 @@ class LinkBudget:
     @property
     def received_power_per_gain(self) -> float:
         """P_r / G = T_f P_t (J_0/P_t) A_det (W m²), eq. (9.4): multiply by G for P_r."""
-        return self.power_per_gain(self.optics.divergence)
+        return float(self.power_per_gain(self.optics.divergence))
 
     def power_per_gain(self, divergence: Scalar) -> Scalar:
         """P_r / G (W m²), eq. (9.4), for a beam of divergence ω_D (rad): a float, or one per link ``[B]``
