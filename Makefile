@@ -46,11 +46,12 @@ test: $(STAMP)
 	echo "make test took $$((elapsed / 60)) min $$((elapsed % 60)) s (exit $$status)"; \
 	exit $$status
 
-# The quick tier while editing: lint, format check and the tests not marked slow.
+# The quick tier while editing: lint, format check, type check and the tests not marked slow.
 test-fast: $(STAMP)
 	@start=$$(date +%s); \
 	$(VENV)/bin/ruff check $(SOURCES) && \
 	$(VENV)/bin/ruff format --check $(SOURCES) && \
+	$(VENV)/bin/mypy && \
 	$(PYTHON) -m pytest -q -n $(WORKERS) --dist worksteal -m "not slow"; \
 	status=$$?; elapsed=$$(( $$(date +%s) - start )); \
 	echo "make test-fast took $$((elapsed / 60)) min $$((elapsed % 60)) s (exit $$status)"; \
