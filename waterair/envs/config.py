@@ -51,8 +51,6 @@ PER_LINK = {
 """Quantities each link may draw from ``<name>_range`` or take from ``<name>_values``: (low, high, unit)."""
 LOW_OPEN = ("wind", "divergence")
 """The :data:`PER_LINK` quantities whose lower bound is excluded."""
-LOG_UNIFORM = ("divergence",)
-"""The :data:`PER_LINK` quantities drawn uniformly in their logarithm (each octave as likely), not in their value."""
 OBSERVATION_EXTRAS = (
     "spot",
     "spot_valid",

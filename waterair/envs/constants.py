@@ -74,17 +74,14 @@ class StepConstants:
 
     def traced(self, device: torch.device) -> StepConstants:
         """These constants as the compiled step takes them: the numbers that differ between an evaluation's
-        environments as 0-dim tensors on ``device``: the beam divergence in the optics and the channel's
-        (:meth:`Transceiver.traced`), the sensor's noise levels and threshold (:meth:`Sensor.traced`) and the
-        residual's range. A graph then serves every value of them, and is the same graph whichever value a
+        environments as 0-dim tensors on ``device``: the sensor's noise levels and threshold
+        (:meth:`Sensor.traced`) and the residual's range (the beam divergence is each link's, from the state:
+        :meth:`for_links`). A graph then serves every value of them, and is the same graph whichever value a
         process compiled first: a float would be compiled in, and compiled symbolic only once torch had seen it
         change (in that process, or in an earlier one of the same job), so the graphs, and the compile cache
         they could share between processes, depended on the order in which groups were run."""
-        optics = self.optics.traced(device)
         return replace(
             self,
-            optics=optics,
-            channel=replace(self.channel, optics=optics),
             sensor=self.sensor.traced(device),
             residual=traced(self.residual, device),  # type: ignore[arg-type]  # a tensor only in the compiled step's copy
         )

@@ -131,14 +131,17 @@ def phase_metrics(
     split = min(round(ACQUISITION_SECONDS / dt), gain.shape[-1])
     out = {}
     for phase, steps in (("acquisition", slice(None, split)), ("tracking", slice(split, None))):
-        if gain[..., steps].shape[-1] > 0:
-            metrics = scenario_metrics(
+        empty = gain[..., steps].shape[-1] == 0
+        metrics = (
+            {}
+            if empty
+            else scenario_metrics(
                 gain[..., steps], upper[..., steps], reference, valid[..., steps], link=link, **bootstrap
             )
+        )
         for name in PHASE_METRICS:
             for suffix in ("", "_lo", "_hi") if name in METRICS else ("",):
-                empty = gain[..., steps].shape[-1] == 0
-                out[f"{phase}_{name}{suffix}"] = math.nan if empty else metrics[f"{name}{suffix}"]
+                out[f"{phase}_{name}{suffix}"] = metrics.get(f"{name}{suffix}", math.nan)
     return out
 
 
