@@ -23,5 +23,5 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
-    sys.argv[1:] = preflight("evaluate", sys.argv[1:], evaluation.check)
+    preflight("evaluate", sys.argv[1:], evaluation.check)
     main()

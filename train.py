@@ -24,5 +24,5 @@ def main(cfg: DictConfig) -> float:
 
 
 if __name__ == "__main__":
-    sys.argv[1:] = preflight("config", sys.argv[1:], training.check)
+    preflight("config", sys.argv[1:], training.check)
     main()

@@ -2,14 +2,14 @@
 
 import pytest
 import torch
-from conftest import PAPER_PHYSICS
+from conftest import paper_physics
 
 from waterair.envs.baselines import BASELINES, FlatSeaSnell, NoAlignment, StraightFacing
 from waterair.envs.env import WaterAirEnv
 
 
 def test_baselines_point_where_they_say():
-    env = WaterAirEnv(num_envs=2, seed=0, n_freq=8, n_dir=4, offset_ratio=0.3, **PAPER_PHYSICS)
+    env = WaterAirEnv(num_envs=2, seed=0, geometry={"offset_ratio": 0.3}, **paper_physics(n_freq=8, n_dir=4))
     td = env.reset()
     straight = StraightFacing(env)(td.clone())["action"]
     line = env.rx_position - env.tx_position
@@ -29,7 +29,10 @@ def test_s1_ordering_of_mean_gain():
     """S1's sea and link (12 m/s, 2e4 m, 20 m vertical, 10 % offset) on a coarser sea, 16 realisations
     over 10 s, the same seas for all (the order holds with a 10 % margin between the two aligners)."""
     env = WaterAirEnv(
-        num_envs=16, wind=12.0, fetch=2e4, offset_ratio=0.1, max_steps=500, n_freq=32, n_dir=16, **PAPER_PHYSICS
+        num_envs=16,
+        geometry={"offset_ratio": 0.1},
+        max_steps=500,
+        **paper_physics(wind=12.0, fetch=2e4, n_freq=32, n_dir=16),
     )
     mean_gain, upper = {}, None
     for name in ("no_alignment", "straight_facing", "flat_snell"):

@@ -8,7 +8,7 @@ import math
 
 import pytest
 import torch
-from conftest import F64, PAPER_PHYSICS, calm, ends
+from conftest import F64, calm, ends, paper_physics
 
 from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
@@ -136,7 +136,7 @@ def test_with_ideal_sensing_on_a_single_path_the_beacon_tracker_points_as_exact_
     offset), from the second where they cannot (30 %: the reset's light arrives 0.24 rad off the vertical,
     beyond a 0.17 rad field of view, and the tracker starts from flat-sea Snell)."""
     config = EnvConfig().replace(
-        n_freq=16, n_dir=8, **PAPER_PHYSICS, dtype="float64", observation_extras=TWO_ENDED, compile_kernel=False
+        **paper_physics(n_freq=16, n_dir=8), dtype="float64", observation_extras=TWO_ENDED, compile_kernel=False
     )
     points = [(4.0, 0.0, 0.0), (12.0, 0.1, 0.0), (20.0, 0.1, 120.0), (20.0, 0.3, 30.0)]
     runs = rollout_policies(config, [("tracking", "tracking"), ("beacon", "beacon_tracker")], points, 3, 30, seed=3)
@@ -148,7 +148,7 @@ def test_with_ideal_sensing_on_a_single_path_the_beacon_tracker_points_as_exact_
 
 
 def test_the_beacon_reading_is_zero_unless_asked_for_and_the_residual_base_needs_it():
-    env = WaterAirEnv(n_freq=16, n_dir=8, num_envs=3, seed=1, observation_extras=("spot", "spot_valid"))
+    env = WaterAirEnv(sea={"n_dir": 8}, num_envs=3, seed=1, observation_extras=("spot", "spot_valid"))
     assert env.constants.beacon is None  # not read: no cost, the packet's beacon slots stay 0
     packet = unpack(env.state["packets"][:, -1])
     assert bool((packet["beacon"] == 0).all()) and bool((packet["beacon_valid"] == 0).all())
@@ -156,13 +156,13 @@ def test_the_beacon_reading_is_zero_unless_asked_for_and_the_residual_base_needs
         ValueError, match=r"^env.residual_base = 'beacon_tracker' needs its readings.*beacon, beacon_valid"
     ):
         EnvConfig(action_mode="residual", residual_base="beacon_tracker", observation_extras=("spot", "spot_valid"))
-    seeing = WaterAirEnv(n_freq=16, n_dir=8, num_envs=3, seed=1, observation_extras=TWO_ENDED)
+    seeing = WaterAirEnv(sea={"n_dir": 8}, num_envs=3, seed=1, observation_extras=TWO_ENDED)
     observation = seeing.reset()["observation"]
     assert bool((seeing.observation_part(observation, "beacon_valid") == 1).all())  # 10 %: seen while parked
 
 
 def test_a_noisy_beacon_reading_spreads_as_configured_and_is_gated_by_its_threshold():
-    keys = {"beacon_noise_rad": 2e-3, "observation_extras": TWO_ENDED, "n_freq": 16, "n_dir": 8, "seed": 2}
+    keys = {"beacon_noise_rad": 2e-3, "observation_extras": TWO_ENDED, "sea": {"n_dir": 8}, "seed": 2}
     ideal = WaterAirEnv(num_envs=400, **{**keys, "beacon_noise_rad": 0.0}).reset()["observation"]
     noisy_env = WaterAirEnv(num_envs=400, **keys)
     noisy = noisy_env.reset()["observation"]
@@ -222,7 +222,7 @@ def test_the_full_channels_beacon_agrees_with_the_monte_carlo_reference_on_measu
 
 
 def test_a_beacon_base_outside_residual_mode_still_reports_its_tilts():
-    env = WaterAirEnv(n_freq=16, n_dir=8, num_envs=2, seed=1, residual_base="beacon_tracker")  # absolute mode
+    env = WaterAirEnv(sea={"n_dir": 8}, num_envs=2, seed=1, residual_base="beacon_tracker")  # absolute mode
     assert env.constants.beacon is not None
     td = env.step(env.reset().set("action", torch.zeros(2, 4)))["next"]
     assert torch.isfinite(td["base_tilt"]).all() and td["base_tilt"].abs().sum() > 0

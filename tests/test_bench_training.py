@@ -32,12 +32,12 @@ def recorded(monkeypatch):
 
 
 def test_every_timed_run_and_sb3_get_the_overrides(recorded):
-    record = training.bench_training(1, 3200, 32000, 100, 1, load=True, overrides=("env.channel=single_path",))
-    assert record["overrides"] == ["env.channel=single_path"]
+    record = training.bench_training(1, 3200, 32000, 100, 1, load=True, overrides=("env/channel=single_path",))
+    assert record["overrides"] == ["env/channel=single_path"]
     # short and long, eager and compiled, agent=ddpg, then quiet and loaded per thread setting
     assert len(recorded["train"]) >= 7
-    assert all(run[0] == "env.channel=single_path" for run in recorded["train"])
-    assert recorded["sb3"] and all(run == ["env.channel=single_path"] for run in recorded["sb3"])
+    assert all(run[0] == "env/channel=single_path" for run in recorded["train"])
+    assert recorded["sb3"] and all(run == ["env/channel=single_path"] for run in recorded["sb3"])
     assert all(row["over_sb3"] == pytest.approx(2.0) for row in record["runs"])
 
 
@@ -54,11 +54,11 @@ def test_the_command_line_passes_repeated_overrides_in_order(monkeypatch, tmp_pa
             [
                 "training",
                 "--override",
-                "env.channel=single_path",
+                "env/channel=single_path",
                 "--override",
                 "seed=3",
                 "--out",
                 str(tmp_path / "t.json"),
             ]
         )
-    assert seen["overrides"] == ("env.channel=single_path", "seed=3")
+    assert seen["overrides"] == ("env/channel=single_path", "seed=3")

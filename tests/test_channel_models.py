@@ -1,12 +1,17 @@
-"""The channel models as one interface (docs/model.md §4.7): the registry's names, validation that names
-the key, and what every model must satisfy: on a calm sea, both ends aligned receive G_0."""
+"""The channel models as one interface (docs/model.md §4.7): the registry of the ``env/channel`` options (its
+classes and YAMLs in agreement), validation that names the key, and what every model must satisfy: on a calm
+sea, both ends aligned receive G_0."""
+
+import dataclasses
 
 import pytest
 import torch
-from conftest import F64, calm, ends
+from conftest import F64, ROOT, calm, ends
+from omegaconf import OmegaConf
 
 from waterair.physics.channel import (
     CHANNELS,
+    Channel,
     ChannelModel,
     LinkEnds,
     LocalEstimate,
@@ -15,7 +20,9 @@ from waterair.physics.channel import (
     SinglePath,
     Transceiver,
     TwoScale,
+    channel,
     channel_model,
+    registry,
 )
 from waterair.physics.optics import unit_vector
 from waterair.physics.paths import flat_sea_point, solve_path
@@ -23,6 +30,15 @@ from waterair.physics.sea import sea_state
 from waterair.physics.surface import WaveSurface
 
 OPTICS = Transceiver()
+
+
+OWN = {
+    "single_path": {},
+    "full": {"nodes": 7},
+    "montecarlo": {"rays": 300, "points": 2},
+    "counting": {"rays": 300, "facets": 4},
+}
+"""Non-default settings of each channel, its own keys only."""
 
 
 @pytest.mark.parametrize(
@@ -39,34 +55,58 @@ OPTICS = Transceiver()
     ],
 )
 def test_the_registry_maps_each_name_to_its_model(name, two_scale, kind):
-    model = channel_model(name, OPTICS, two_scale, lattice_nodes=9, montecarlo_rays=300)
+    model = channel_model(name, OPTICS, two_scale, **OWN[name])
     assert type(model) is kind and model.optics is OPTICS
-    assert isinstance(model, ChannelModel) and name in CHANNELS
+    assert isinstance(model, ChannelModel) and CHANNELS[name].name == name
     if kind is TwoScale:
-        assert model.nodes == 9
+        assert model.nodes == 7
     if kind in (MonteCarlo, LocalEstimate):
         assert model.rays == 300 and not model.compiles and not model.needs_exact_point
+    if kind is LocalEstimate:
+        assert model.points == 2
+    if name == "counting":
+        assert model.facets == 4
+
+
+def test_the_registry_the_yaml_group_and_the_classes_agree():
+    """Each option of conf/env/channel is a registered class of the same name with the same keys and defaults,
+    and every registered class has its YAML: adding a model is a class, its entry and its YAML."""
+    yamls = {
+        path.stem: OmegaConf.to_container(OmegaConf.load(path)) for path in (ROOT / "conf/env/channel").glob("*.yaml")
+    }
+    assert set(yamls) == set(CHANNELS)
+    assert set(CHANNELS.values()) == {kind for kind in vars(registry).values() if isinstance(kind, type)
+                                       and issubclass(kind, Channel) and kind is not Channel}  # fmt: skip
+    for name, kind in CHANNELS.items():
+        assert kind.name == name and yamls[name]["name"] == name
+        defaults = {field.name: field.default for field in dataclasses.fields(kind)}
+        assert {key: value for key, value in yamls[name].items() if key != "name"} == defaults, name
+        assert channel(**yamls[name]) == kind()
 
 
 @pytest.mark.parametrize(
-    ("settings", "message"),
+    ("name", "two_scale", "settings", "message"),
     [
-        ({"lattice_nodes": 4}, r"^lattice_nodes = 4 is not allowed; it must be odd"),
-        ({"lattice_nodes": 33}, r"^lattice_nodes = 33 is out of range"),
-        ({"lattice_span": 0.5}, r"^lattice_span = 0.5 is out of range"),
-        ({"montecarlo_rays": 0}, r"^montecarlo_rays = 0 is out of range"),
-        ({"montecarlo_facets": 0}, r"^montecarlo_facets = 0 is out of range"),
-        ({"montecarlo_points": 0}, r"^montecarlo_points = 0 is out of range"),
+        ("full", True, {"nodes": 4}, r"^nodes = 4 is not allowed; it must be odd"),
+        ("full", False, {"nodes": 33}, r"^nodes = 33 is out of range"),  # RayTube has no lattice: checked beside it
+        ("full", True, {"span": 0.5}, r"^span = 0.5 is out of range"),
+        ("montecarlo", True, {"rays": 0}, r"^rays = 0 is out of range"),
+        ("montecarlo", False, {"points": 0}, r"^points = 0 is out of range"),  # the counting tracer has no points
+        ("counting", True, {"facets": 0}, r"^facets = 0 is out of range"),
+        ("single_path", True, {"rays": 10}, r"^rays is not a key of the single_path channel; it has no keys$"),
+        ("counting", True, {"points": 2}, r"^points is not a key of the counting channel; its keys: rays, facets$"),
     ],
 )
-def test_every_setting_is_checked_whichever_model_is_chosen_and_named_by_its_key(settings, message):
+def test_every_setting_is_checked_whichever_model_the_sea_needs_and_named_by_its_key(
+    name, two_scale, settings, message
+):
     with pytest.raises(ValueError, match=message):
-        channel_model("single_path", OPTICS, False, **settings)
+        channel_model(name, OPTICS, two_scale, **settings)
 
 
 def test_an_unknown_channel_is_a_one_line_error():
     with pytest.raises(
-        ValueError, match=r"^channel = 'exact' is not allowed; choose one of single_path, full, montecarlo, counting$"
+        ValueError, match=r"^name = 'exact' is not allowed; choose one of full, single_path, montecarlo, counting$"
     ):
         channel_model("exact", OPTICS, False)
 

@@ -54,7 +54,7 @@ SEAS = {
 }
 INTERFACES = {
     # the paper's interface: absolute pointing, an ideal sensor that reads the spot even without light
-    "absolute_ideal": {"observation_extras": ("spot", "spot_valid", "history"), "wind": 12.0, "offset_ratio": 0.1},
+    "absolute_ideal": {"observation_extras": ("spot", "spot_valid", "history"), "geometry": {"offset_ratio": 0.1}},
     # corrections on the quadrant back-projection, through a late and noisy sensor, over many seas
     "residual_realistic": {
         "action_mode": "residual",
@@ -86,10 +86,8 @@ def rollout(channel: str, sea: str, interface: str) -> dict[str, torch.Tensor]:
         num_envs=4,
         seed=7,
         dtype="float64",
-        channel="counting" if channel == "montecarlo" else channel,
-        montecarlo_rays=2000,
-        montecarlo_facets=8,
-        **SEAS[sea],
+        channel={"name": "counting", "rays": 2000, "facets": 8} if channel == "montecarlo" else {"name": channel},
+        sea={**SEAS[sea], "wind": 12.0},  # the wind of the recordings; the residual interface draws its own
         **INTERFACES[interface],
     )
     # small actions: near straight facing (absolute) or near the base controller (residual), where light arrives

@@ -11,7 +11,7 @@ from conftest import ROOT, compose_config, rejection
 
 from waterair.cli import launch, training
 from waterair.cli.console import quiet_dependencies
-from waterair.cli.preflight import jobs, on_a_cpu, one_line, preflight, renamed
+from waterair.cli.preflight import check_renamed, jobs, on_a_cpu, one_line, preflight
 
 SHIPPED = ROOT / "waterair" / "assets" / "default.pt"
 
@@ -80,33 +80,29 @@ def test_a_sweep_is_checked_job_by_job_before_it_starts():
     assert jobs(["env.sea.wind=8"]) == [["env.sea.wind=8"]]
 
 
-def test_the_first_releases_env_keys_and_sea_options_are_rewritten_with_a_note(capsys):
-    old = [
-        "-m",
-        "env.wind=4,12",
-        "+env.aperture_diameter=0.1",
-        "env/spectrum=paper,ocean",
-        "env.num_envs=4",
-        "envx.wind=1",
-    ]
-    new = ["-m", "env.sea.wind=4,12", "+env.optics.aperture_diameter=0.1", "env/spectrum=jonswap,elfouhaily"]
-    assert renamed(old) == [*new, "env.num_envs=4", "envx.wind=1"]
-    notes = capsys.readouterr().err.splitlines()
-    pairs = zip(old[1:4], new[1:], strict=True)
-    assert notes == [f'note: {a} is {b} in this version (docs/environment.md, "Renamed keys")' for a, b in pairs]
-    assert renamed(["env.windy=3", "env.sea.wind=3"]) == ["env.windy=3", "env.sea.wind=3"]  # unknown and new keys stay
+@pytest.mark.parametrize(
+    ("argv", "line"),
+    [
+        (["-m", "env.wind=4,12"], "error: env.wind is env.sea.wind in this version (env.wind=4,12 → env.sea.wind=4,12)"),
+        (["+env.aperture_diameter=0.1"], "error: env.aperture_diameter is env.optics.aperture_diameter in this version"),
+        (["env.lattice_nodes=5"], "error: env.lattice_nodes is env.channel.nodes in this version"),
+        (["env.channel=single_path"], "error: env.channel=single_path: the channel is a config group now; write env/ch"),
+        (["env/spectrum=ocean"], "error: env/spectrum=ocean is not an option of env/spectrum; choose one of elfouhaily"),
+    ],
+)
+def test_a_key_of_the_first_releases_is_one_line_naming_todays(argv, line):
+    assert rejection("train.py", argv).startswith(line)
+    assert rejection("evaluate.py", argv).startswith(line)
 
 
-def test_an_old_command_line_runs_as_the_new_one_and_its_errors_name_the_new_key(capsys):
-    assert preflight("config", ["env.offset_ratio=0.2", "env/spectrum=ocean"], training.check) == [
-        "env.geometry.offset_ratio=0.2",
-        "env/spectrum=elfouhaily",
-    ]
-    assert rejection("train.py", ["env.wind=-3"]) == "error: env.sea.wind = -3 is out of range; allowed (0, 60] m/s"
+def test_todays_keys_and_unknown_ones_are_not_taken_for_old_ones():
+    check_renamed(["env.sea.wind=3", "envx.wind=1", "env/channel=single_path", "env.channel.nodes=5"])
+    assert rejection("train.py", ["env.windy=3"]) == (
+        "error: env.windy is not a config key (check the spelling; every key is in docs/training.md)"
+    )
     assert rejection("train.py", ["env.sea.gamma=2", "env/spectrum=elfouhaily"]).startswith(
         "error: env.sea.gamma is not a config key"
     )
-
 
 def test_hydra_messages_become_one_line():
     error = ValueError("In 'config': Could not find 'agent/sac'\n\n"

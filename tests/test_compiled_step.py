@@ -25,7 +25,7 @@ from dataclasses import replace
 import pytest
 import torch
 
-from tests.conftest import preset_config
+from tests.conftest import paper_physics, preset_config
 from waterair.envs import kernel, stepper
 from waterair.envs.config import OBSERVATION_EXTRAS
 from waterair.envs.env import WaterAirEnv
@@ -39,8 +39,7 @@ from waterair.physics.surface import WaveSurface
 
 COMPARED = ("observation", "gain", "gain_upper_bound", "intensity", "reward", "path_valid")
 OCEAN = {"spectrum": "elfouhaily", "n_wavenumbers": 24, "n_dir": 8}
-SMALL_SEA = {"n_freq": 16, "n_dir": 8}
-PAPER = {"spectrum": "jonswap", "channel": "single_path"}  # the single path converges the tracked point: finishing
+PAPER = paper_physics()  # the single path converges the tracked point: finishing
 FIXED_LINK = {"wind_range": None, "offset_range": None}
 """The evaluation's environments below: every link at the default wind and offset."""
 STEP = {
@@ -254,7 +253,7 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(
     gains = []
     with stepper.varying_environments():
         for batch, keys in EVALUATION_ENVS:
-            config = preset_config("quadrant", "realistic", batch, channel="full", compile_kernel=True, **OCEAN)
+            config = preset_config("quadrant", "realistic", batch, compile_kernel=True, sea=OCEAN)
             config = config.replace(residual_base="aoa_tracker", **keys, **FIXED_LINK)
             actions = torch.linspace(-1.0, 1.0, 3 * batch * 4).reshape(3, batch, 4)
             gains.append(rollout(WaterAirEnv(config), actions)["gain"][:, :2])
@@ -285,7 +284,8 @@ def test_a_groups_graph_in_an_evaluation_does_not_depend_on_the_groups_before_it
         monkeypatch.setattr(stepper, "compiled", lambda name: step if name == "step" else getattr(kernel, name))
         with stepper.varying_environments():
             for sensor in ("ideal", "realistic") if after_ideal else ("realistic",):
-                config = preset_config("quadrant", sensor, 4, compile_kernel=True, **PAPER, **SMALL_SEA)
+                physics = paper_physics(n_freq=16, n_dir=8)
+                config = preset_config("quadrant", sensor, 4, compile_kernel=True, **physics)
                 rollout(WaterAirEnv(config.replace(**FIXED_LINK)), torch.zeros(2, 4, 4))
         assert len(codes) == (2 if after_ideal else 1)
         return codes[-1]

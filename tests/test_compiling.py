@@ -4,7 +4,8 @@ import pytest
 from conftest import compose_config
 
 from waterair.training import validate
-from waterair.training.compiling import MIN_FRAMES, MIN_FRAMES_FULL, cache_state, compile_plan
+from waterair.physics.channel import FullChannel, SinglePathChannel
+from waterair.training.compiling import cache_state, compile_plan
 
 
 @pytest.mark.parametrize(
@@ -12,9 +13,9 @@ from waterair.training.compiling import MIN_FRAMES, MIN_FRAMES_FULL, cache_state
     [(4_000, "warm", False), (160_000, "warm", True), (160_000, "cold", False), (400_000, "cold", True)],
 )
 def test_auto_compiles_when_the_frames_to_go_repay_the_compile(frames, cache, compiled):
-    plan, why = compile_plan(compose_config("config", ["env.channel=single_path"]), frames, cache)
+    plan, why = compile_plan(compose_config("config", ["env/channel=single_path"]), frames, cache)
     assert plan.env.compile_kernel is compiled and plan.compile_update is compiled
-    assert f"{frames:,} frames to go" in why and f"{MIN_FRAMES[cache]:,}" in why and f"cache {cache}" in why
+    assert f"{frames:,} frames to go" in why and f"{SinglePathChannel.compile_frames[cache]:,}" in why and f"cache {cache}" in why
 
 
 @pytest.mark.parametrize("frames,cache,compiled", [(20_000, "warm", False), (32_000, "warm", True),
@@ -23,7 +24,7 @@ def test_on_the_full_channel_compiling_pays_from_fewer_frames(frames, cache, com
     # the default channel costs 7x more a frame eager than compiled: make train's 160,000 frames compile cold
     plan, why = compile_plan(compose_config("config"), frames, cache)
     assert plan.env.compile_kernel is compiled and plan.compile_update is compiled
-    assert f"{MIN_FRAMES_FULL[cache]:,} on the full channel" in why
+    assert f"{FullChannel.compile_frames[cache]:,} on the full channel" in why
 
 
 def test_a_setting_of_true_or_false_is_kept_whatever_the_frames():

@@ -48,7 +48,7 @@ def test_a_batch_of_mixed_divergences_gives_each_link_what_a_batch_of_its_diverg
     sensing with the beacon read, residual actions on the beacon tracker: bit for bit, eagerly."""
     steps = 12
     base = preset_config(
-        "beacon", "realistic", len(SPREAD), channel=channel, action_mode="residual", divergence_range=None
+        "beacon", "realistic", len(SPREAD), channel={"name": channel}, action_mode="residual", divergence_range=None
     )
     if channel == "full":
         base = base.replace(sea={"n_wavenumbers": 24, "n_dir": 8})
@@ -117,7 +117,7 @@ def test_an_evaluation_runs_every_link_at_the_scenarios_divergence_whatever_the_
     """Training's closing evaluation takes the training environment, its divergence range too: the rollouts put
     every link at optics.divergence, the divergence its link budget converts gain at, as for any scenario."""
     scenario = Scenario("train", "training point", None, ((12.0, 0.1, 0.0),), 2, 6, 7)
-    base = EnvConfig(channel="single_path", sea={"n_wavenumbers": 24, "n_dir": 8}, optics={"divergence": 0.01})
+    base = EnvConfig(channel={"name": "single_path"}, sea={"n_wavenumbers": 24, "n_dir": 8}, optics={"divergence": 0.01})
     ranged = base.replace(divergence_range=(0.005, 0.1))
     fixed = compare_policies(base, {"flat": "flat_snell"}, scenario)
     assert compare_policies(ranged, {"flat": "flat_snell"}, scenario) == fixed

@@ -14,7 +14,7 @@ SMALL_SEA = {"n_wavenumbers": 12, "n_dir": 8}  # the default sea (measured slope
 
 
 def small_env(**kwargs) -> WaterAirEnv:
-    return WaterAirEnv(**{"seed": 0, **SMALL_SEA, **kwargs})
+    return WaterAirEnv(**{"seed": 0, "sea": SMALL_SEA, **kwargs})
 
 
 @pytest.mark.parametrize("num_envs", [1, 16])
@@ -30,7 +30,7 @@ def test_check_env_specs(num_envs, action_mode, extras):
 
 
 def test_one_line_construction_uses_defaults():
-    env = WaterAirEnv(num_envs=4, wind=8.0, device="cpu", **SMALL_SEA)
+    env = WaterAirEnv(num_envs=4, sea={"wind": 8.0, **SMALL_SEA}, device="cpu")
     assert env.batch_size == (4,)
     assert env.config.sea.wind == 8.0 and env.config.sea.fetch == 2.0e4 and env.config.max_steps == 500
 
@@ -38,7 +38,7 @@ def test_one_line_construction_uses_defaults():
 @pytest.mark.slow
 @pytest.mark.parametrize("wind", [4.0, 12.0, 25.0])
 def test_long_random_rollouts_are_finite_and_below_the_upper_bound(wind):
-    env = WaterAirEnv(num_envs=32, wind=wind, seed=1, n_wavenumbers=24, n_dir=8, max_steps=150)
+    env = WaterAirEnv(num_envs=32, sea={"wind": wind, "n_wavenumbers": 24, "n_dir": 8}, seed=1, max_steps=150)
     rollout = env.rollout(150, break_when_any_done=False)  # 7.5 s of 32 seas at each wind
     nxt = rollout["next"]
     for key in ("observation", "reward", "gain", "gain_upper_bound", "intensity"):

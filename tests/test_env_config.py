@@ -1,7 +1,7 @@
 """The env group's keys are each checked once, where they are defined, against the range docs/environment.md
 documents, and an error names the key path (``env.<key>``, ``env.sea.<key>``): a value valid for the env is
-never rejected deeper down (in the physics objects, the channel model or the link budget). The flat keys of
-the first releases still build the same config."""
+never rejected deeper down (in the physics objects, the channel model or the link budget). A key of the first
+releases is an error naming where it lives now."""
 
 import dataclasses
 import math
@@ -15,7 +15,15 @@ from conftest import ROOT
 from waterair.core import validation
 from waterair.envs.config import EnvConfig
 from waterair.envs.link import link_budget
-from waterair.physics.channel import Beacon, LinkGeometry, Transceiver
+from waterair.physics.channel import (
+    Beacon,
+    CountingChannel,
+    FullChannel,
+    LinkGeometry,
+    MonteCarloChannel,
+    SinglePathChannel,
+    Transceiver,
+)
 from waterair.physics.sea import ElfouhailySea, JonswapSea
 
 NUMBER = r"[-+]?(?:\d+(?:\.\d*)?(?:e[-+]?\d+)?|π/2)"
@@ -40,6 +48,7 @@ GROUPS = {
     "geometry": (LinkGeometry,),
     "optics": (Transceiver,),
     "beacon": (Beacon,),
+    "channel": (FullChannel, MonteCarloChannel, CountingChannel),
 }
 
 
@@ -60,12 +69,21 @@ SEA_OF = {
     "sea.n_freq": "jonswap",
 }
 """The keys only one sea has, and that sea (the default sea is JONSWAP)."""
+CHANNEL_OF = {
+    "channel.nodes": "full",
+    "channel.span": "full",
+    "channel.rays": "montecarlo",
+    "channel.points": "montecarlo",
+    "channel.facets": "counting",
+}
+"""The channel each channel key belongs to (a channel has only its own keys)."""
 
 
 def test_the_documented_ranges_cover_the_physics_keys():
-    physics = {"sea.wind", "optics.aperture_diameter", "lattice_span", "montecarlo_rays", "optics.divergence"}
+    physics = {"sea.wind", "optics.aperture_diameter", "channel.span", "channel.rays", "optics.divergence"}
     assert physics | {"geometry.tx_depth", "sea.n_wavenumbers", "sea.gamma", "optics.attenuation"} <= set(RANGES)
-    assert {"sea.n_dir", "lattice_nodes", "max_steps"} <= INTEGER_KEYS and "sea.wind" not in INTEGER_KEYS
+    assert {"sea.n_dir", "channel.nodes", "max_steps"} <= INTEGER_KEYS and "sea.wind" not in INTEGER_KEYS
+    assert set(CHANNEL_OF) <= set(RANGES)
 
 
 def config_with(key: str, value) -> EnvConfig:
@@ -74,6 +92,7 @@ def config_with(key: str, value) -> EnvConfig:
         return EnvConfig.from_mapping({key: value})
     group, name = key.split(".")
     keys = {name: value, **({"spectrum": SEA_OF[key]} if key in SEA_OF else {})}
+    keys |= {"name": CHANNEL_OF[key]} if key in CHANNEL_OF else {}
     return EnvConfig.from_mapping({group: keys})
 
 
@@ -99,7 +118,7 @@ def test_every_documented_value_is_accepted_and_the_next_one_refused_naming_the_
     if integer:
         inside_high, inside_low = int(inside_high), int(math.ceil(inside_low))
     for value in (inside_low, inside_high):
-        if key == "lattice_nodes" and value % 2 == 0:
+        if key == "channel.nodes" and value % 2 == 0:
             value -= 1
         assert value_at(accepted(key, value), key) == value
     outside = int(high) + 1 if integer else (high if not high_closed else high + step)
@@ -131,8 +150,8 @@ def test_each_key_is_checked_exactly_once(monkeypatch):
     given = {"geometry": {"tx_depth": 10.0}, "optics": {"aperture_diameter": 0.05}}  # as Hydra gives the groups
     for overrides in (
         {"sea": {"wind": 12.0}},
-        {"channel": "full", "sea": {"spectrum": "elfouhaily", "wind": 12.0}},
-        {"channel": "montecarlo", "sea": {"wind": 12.0}},
+        {"channel": {"name": "full"}, "sea": {"spectrum": "elfouhaily", "wind": 12.0}},
+        {"channel": {"name": "montecarlo"}, "sea": {"wind": 12.0}},
     ):
         calls.clear()
         config = EnvConfig.from_mapping({**given, **overrides})
@@ -157,30 +176,53 @@ def test_compile_kernel_is_true_or_false_and_the_yamls_auto_is_refused_not_compi
     assert EnvConfig(compile_kernel=True).compile_kernel is True and EnvConfig().compile_kernel is False
 
 
-def flat(config: EnvConfig) -> dict:
-    """``config`` as the first releases wrote it: every physics key flat beside the interface keys."""
-    values = config.to_mapping()
-    for group in ("sea", "geometry", "optics"):
-        values.update(values.pop(group))
-    return values
+@pytest.mark.parametrize(
+    ("key", "now"),
+    [("wind", "sea.wind"), ("offset_ratio", "geometry.offset_ratio"), ("aperture_diameter", "optics.aperture_diameter"),
+     ("spectrum", "sea.spectrum"), ("lattice_nodes", "channel.nodes"), ("montecarlo_points", "channel.points")],
+)  # fmt: skip
+def test_a_key_of_the_first_releases_is_an_error_naming_where_it_lives_now(key, now):
+    message = rf"^env\.{key} is env\.{re.escape(now)} in this version \(python -m waterair\.cli\.migrate RUN"
+    with pytest.raises(ValueError, match=message):
+        EnvConfig.from_mapping({key: 1.0})
+    with pytest.raises(ValueError, match=message):
+        EnvConfig().replace(**{key: 1.0})
 
 
-def test_the_flat_keys_of_old_configs_build_the_same_config():
-    nested = EnvConfig.from_mapping(
-        {"sea": {"spectrum": "elfouhaily", "wind": 7.0, "n_dir": 16}, "geometry": {"offset_ratio": 0.3}, "num_envs": 4}
-    )
-    old = flat(nested) | {"gamma": 3.3, "n_freq": 64}  # old configs listed both seas' own keys
-    assert EnvConfig.from_mapping(old) == nested
-    assert nested.replace(wind=9.0).sea == dataclasses.replace(nested.sea, wind=9.0)
-    assert nested.replace(sea={"wind": 9.0}) == nested.replace(wind=9.0)
-    assert nested.replace(aperture_diameter=0.1).optics.aperture_diameter == 0.1
+def test_the_channel_is_a_group_of_its_own_keys_and_another_channel_takes_its_defaults():
+    full = EnvConfig.from_mapping({"channel": {"name": "full", "nodes": 5}})
+    assert full.channel == FullChannel(nodes=5)
+    assert full.to_mapping()["channel"] == {"name": "full", "nodes": 5, "span": 4.5}
+    assert full.replace(channel={"span": 3.0}).channel == FullChannel(nodes=5, span=3.0)
+    assert full.replace(channel={"name": "single_path"}).channel == SinglePathChannel()
+    assert EnvConfig.from_mapping(full.to_mapping()) == full
+    refusals = [
+        (
+            {"name": "single_path", "nodes": 5},
+            r"^env\.channel\.nodes is not a key of the single_path channel; it has no",
+        ),
+        (
+            {"name": "montecarlo", "facets": 5},
+            r"^env\.channel\.facets is not a key of the montecarlo channel; its keys: ra",
+        ),
+        (
+            "single_path",
+            r"^env\.channel = 'single_path' must be a mapping of its keys: choose a channel with env/channel=",
+        ),
+        (
+            {"name": "exact"},
+            r"^env\.channel\.name = 'exact' is not allowed; choose one of full, single_path, montecarlo",
+        ),
+    ]
+    for channel, message in refusals:
+        with pytest.raises(ValueError, match=message):
+            EnvConfig.from_mapping({"channel": channel})
 
 
 def test_naming_another_sea_keeps_the_conditions_and_takes_that_seas_own_discretisation():
     ocean = EnvConfig.from_mapping({"sea": {"spectrum": "elfouhaily", "wind": 7.0, "n_wavenumbers": 12}})
     paper = ocean.replace(sea={"spectrum": "jonswap"})
     assert paper.sea == JonswapSea(wind=7.0)
-    assert ocean.replace(spectrum="jonswap") == paper
 
 
 @pytest.mark.parametrize(
@@ -212,8 +254,7 @@ def test_the_yaml_states_each_physics_default_the_physics_object_has():
             "optics": Transceiver(**env["optics"]),
         }
         assert composed == {"sea": kind(), "geometry": LinkGeometry(), "optics": Transceiver()}
-        channel = ("lattice_nodes", "lattice_span", "montecarlo_rays", "montecarlo_facets")
-        assert {key: env[key] for key in channel} == {key: getattr(EnvConfig(), key) for key in channel}
+        assert env["channel"] == {"name": "full", "nodes": FullChannel().nodes, "span": FullChannel().span}
 
 
 @pytest.mark.parametrize("entry", ["config", "evaluate"])
@@ -222,24 +263,11 @@ def test_the_defaults_are_the_measured_slope_sea_and_the_full_channel_and_the_pa
     from conftest import compose_config
 
     default = compose_config(entry).env
-    assert (default.sea.spectrum, default.channel) == ("elfouhaily", "full")
-    assert (EnvConfig().sea, EnvConfig().channel) == (ElfouhailySea(), "full")
+    assert (default.sea.spectrum, default.channel.name) == ("elfouhaily", "full")
+    assert (EnvConfig().sea, EnvConfig().channel) == (ElfouhailySea(), FullChannel())
     assert EnvConfig.from_mapping({"sea": {"wind": 8.0}}).sea == ElfouhailySea(wind=8.0)  # a sea that names none
-    assert (default.lattice_nodes, default.lattice_span) == (EnvConfig().lattice_nodes, EnvConfig().lattice_span)
+    assert EnvConfig.from_mapping({"channel": dict(default.channel)}).channel == EnvConfig().channel
     paper = compose_config(entry, ["+experiment=paper"]).env
-    assert (paper.sea.spectrum, paper.channel) == ("jonswap", "single_path")
+    assert (paper.sea.spectrum, dict(paper.channel)) == ("jonswap", {"name": "single_path"})
     sea = {key: value for key, value in paper.sea.items() if key != "spectrum"}
     assert JonswapSea(**sea) == JonswapSea()  # the paper's sea as it always was: 64 × 32, γ 3.3
-
-
-def test_a_saved_config_that_names_no_channel_or_sea_runs_the_physics_it_ran():
-    # the releases before the defaults moved left channel and spectrum out when at their defaults
-    from waterair.envs.legacy import saved
-
-    old = saved({"num_envs": 4, "sea": {"wind": 8.0}})
-    assert EnvConfig.from_mapping(old).channel == "single_path"
-    assert EnvConfig.from_mapping(old).sea == JonswapSea(wind=8.0)
-    first_release = saved({"wind": 8.0, "offset_ratio": 0.3})  # flat keys, no channel, no spectrum
-    assert EnvConfig.from_mapping(first_release).sea == JonswapSea(wind=8.0)
-    named = {"channel": "full", "sea": {"spectrum": "elfouhaily", "wind": 8.0}}
-    assert saved(named) == named  # a config written since names both: unchanged

@@ -8,7 +8,7 @@ from gymnasium.utils.env_checker import check_env  # noqa: E402
 
 from waterair.envs.gym import WaterAirGymEnv, WaterAirVectorEnv  # noqa: E402
 
-SMALL = {"n_wavenumbers": 12, "n_dir": 8}
+SMALL = {"sea": {"n_wavenumbers": 12, "n_dir": 8}}
 
 
 def test_single_env_passes_gymnasium_check_env():

@@ -119,6 +119,29 @@ def cycles(imports: dict[str, set[str]]) -> list[list[str]]:
 SOURCES = sorted(PACKAGE.rglob("*.py")) + [ROOT / "train.py", ROOT / "evaluate.py"]
 
 
+def channel_name_literals(files: list[Path]) -> list[str]:
+    """String constants that are a channel's name (``"full"``, ``"single_path"``, ...) in ``files``."""
+    from waterair.physics.channel import CHANNELS
+
+    return [f"{path}:{node.lineno} {node.value!r}" for path in files
+            for node in ast.walk(ast.parse(path.read_text()))
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in CHANNELS]  # fmt: skip
+
+
+def test_no_channel_is_named_outside_physics_channel():
+    """A model's traits are its class's (waterair.physics.channel.registry); nothing else compares its name.
+    Benchmarks may name what they time."""
+    allowed = (PACKAGE / "physics" / "channel", PACKAGE / "bench")
+    outside = [path for path in SOURCES if not any(path.is_relative_to(folder) for folder in allowed)]
+    assert channel_name_literals(outside) == []
+
+
+def test_a_channel_name_literal_is_found(tmp_path):
+    module = tmp_path / "late.py"
+    module.write_text('def f(config):\n    return config.channel == "single_path"\n')
+    assert channel_name_literals([module]) and not channel_name_literals([ROOT / "waterair" / "core" / "files.py"])
+
+
 def test_imports_point_down_the_layers():
     assert layering_violations(graph(SOURCES)) == []
 

@@ -4,7 +4,7 @@ draws against the normal law, and a controller's metrics alone, beside others an
 import math
 
 import torch
-from conftest import PAPER_PHYSICS
+from conftest import paper_physics
 
 from waterair.envs.config import EnvConfig
 from waterair.envs.noise import mix, normals, stream_keys
@@ -58,9 +58,7 @@ def test_a_link_keeps_its_stream_whatever_runs_beside_it_and_however_many_links_
 
 def test_a_controller_scores_the_same_alone_and_beside_others_with_noisy_sensing_under_any_name():
     config = EnvConfig().replace(
-        n_freq=16,
-        n_dir=8,
-        **PAPER_PHYSICS,
+        **paper_physics(n_freq=16, n_dir=8),
         observation_extras=("spot", "spot_valid", "history", "action_history", "geometry"),
         intensity_noise=0.05,
         intensity_noise_floor=1e-3,

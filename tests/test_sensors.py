@@ -4,7 +4,7 @@ import math
 
 import pytest
 import torch
-from conftest import PAPER_PHYSICS, compose_config
+from conftest import compose_config, paper_physics
 from omegaconf import OmegaConf
 from torchrl.envs.utils import check_env_specs
 
@@ -15,7 +15,7 @@ from waterair.envs.env import WaterAirEnv
 from waterair.envs.noise import stream_keys
 from waterair.envs.sensors import PACKET_PARTS, Sensor, intensity_feature, intensity_from_feature
 
-SMALL = {"n_freq": 16, "n_dir": 8, "seed": 3, **PAPER_PHYSICS}  # calibrated on the paper's sea and channel
+SMALL = {"seed": 3, **paper_physics(n_freq=16, n_dir=8)}  # calibrated on the paper's sea and channel
 QUADRANT = ("spot", "spot_valid", "history", "action_history", "geometry")
 
 
@@ -109,7 +109,7 @@ def test_every_observation_preset_passes_the_spec_check(preset, num_envs):
     keys = OmegaConf.to_container(compose_config("config", [f"env/observation={preset}"]).env, resolve=True)
     # eager: the specs do not depend on compiling (tests/test_compiled_step.py compares the two)
     config = EnvConfig.from_mapping(
-        {**keys, "num_envs": num_envs, "n_freq": 16, "n_dir": 8, "compile_kernel": False, **PAPER_PHYSICS}
+        {**keys, "num_envs": num_envs, "compile_kernel": False, **paper_physics(n_freq=16, n_dir=8)}
     )
     env = WaterAirEnv(config)
     check_env_specs(env)
@@ -119,7 +119,8 @@ def test_every_observation_preset_passes_the_spec_check(preset, num_envs):
 
 
 def test_geometry_reads_the_drone_position_over_the_vertical_distance():
-    env = WaterAirEnv(**SMALL, num_envs=2, observation_extras=("geometry",), offset_ratio=0.3, offset_azimuth_deg=90)
+    geometry = {"offset_ratio": 0.3, "offset_azimuth_deg": 90}
+    env = WaterAirEnv(**SMALL, num_envs=2, observation_extras=("geometry",), geometry=geometry)
     geometry = env.observation_part(env.reset()["observation"], "geometry")
     torch.testing.assert_close(geometry, torch.tensor([[0.0, 0.3], [0.0, 0.3]]), atol=1e-6, rtol=0)
 
@@ -128,13 +129,9 @@ def test_on_a_nearly_calm_sea_the_aoa_tracker_reaches_the_upper_bound():
     # A long, gentle swell (U10 0.5 m/s over 1e7 m: slopes of a few mrad): the one step of delay costs little.
     env = WaterAirEnv(
         num_envs=16,
-        wind=0.5,
-        fetch=1e7,
         seed=0,
-        n_freq=32,
-        n_dir=16,
         observation_extras=("spot", "spot_valid"),
-        **PAPER_PHYSICS,
+        **paper_physics(wind=0.5, fetch=1e7, n_freq=32, n_dir=16),
     )
     out = env.rollout(100, AoATracker(env), break_when_any_done=False)["next"]
     ratio = out["gain"].double().mean() / out["gain_upper_bound"].double().mean()
@@ -144,7 +141,7 @@ def test_on_a_nearly_calm_sea_the_aoa_tracker_reaches_the_upper_bound():
 @pytest.mark.slow
 def test_the_controllers_beat_flat_snell_at_12_m_s():
     """The prototype's guide values: about 0.96 (quadrant) and 0.80 (intensity only) of UB, flat-Snell 0.70."""
-    env = WaterAirEnv(num_envs=32, seed=4, observation_extras=("spot", "spot_valid"), **PAPER_PHYSICS)
+    env = WaterAirEnv(num_envs=32, seed=4, observation_extras=("spot", "spot_valid"), **paper_physics())
     ratios = {}
     for policy in (AoATracker, IntensityDither, FlatSeaSnell):
         env.set_seed(4)
@@ -161,18 +158,17 @@ def test_rotating_the_whole_scene_leaves_flat_snell_and_the_upper_bound_unchange
         env = WaterAirEnv(
             num_envs=24,
             seed=9,
-            n_freq=32,
-            n_dir=16,
             offset_azimuth_values=(angle,),
             wind_direction_values=(angle,),
-            **PAPER_PHYSICS,
+            **paper_physics(n_freq=32, n_dir=16),
         )
         out = env.rollout(60, FlatSeaSnell(env), break_when_any_done=False)["next"]
         traces.append((out["gain"].double(), out["gain_upper_bound"].double()))
     (gain_a, upper_a), (gain_b, upper_b) = traces
     torch.testing.assert_close(upper_b.mean(), upper_a.mean(), rtol=1e-3, atol=0)
     torch.testing.assert_close(gain_b.mean(), gain_a.mean(), rtol=1e-3, atol=0)
-    unrotated_sea = WaterAirEnv(num_envs=24, seed=9, n_freq=32, n_dir=16, offset_azimuth_deg=120.0, **PAPER_PHYSICS)
+    physics = {"geometry": {"offset_azimuth_deg": 120.0}, **paper_physics(n_freq=32, n_dir=16)}
+    unrotated_sea = WaterAirEnv(num_envs=24, seed=9, **physics)
     assert not torch.allclose(
         upper_a, unrotated_sea.rollout(60, break_when_any_done=False)["next", "gain_upper_bound"].double()
     )
@@ -192,7 +188,8 @@ def test_in_delta_mode_late_telemetry_does_not_disturb_a_pointing_policy():
     """Policies steer from the commanded tilt, not from the (late) pointing telemetry in the observation."""
     traces = []
     for latency in (0, 2):
-        env = WaterAirEnv(**SMALL, num_envs=8, action_mode="delta", latency_steps=latency, offset_ratio=0.5, wind=4.0)
+        physics = {**SMALL, **paper_physics(n_freq=16, n_dir=8, wind=4.0), "geometry": {"offset_ratio": 0.5}}
+        env = WaterAirEnv(**physics, num_envs=8, action_mode="delta", latency_steps=latency)
         traces.append(env.rollout(40, FlatSeaSnell(env), break_when_any_done=False)["next", "intensity"])
     assert torch.equal(traces[0], traces[1])
 
@@ -209,7 +206,7 @@ def test_the_intensity_dither_takes_no_probe_from_the_parked_gimbals_reading(lat
             seen.append((tx[:, :2] - FlatSeaSnell.directions(self, tensordict)[0][:, :2]).clone())
             return tx, rx
 
-    env = WaterAirEnv(**{**SMALL, "num_envs": 6, "latency_steps": latency, "offset_ratio": 0.05})
+    env = WaterAirEnv(**{**SMALL, "num_envs": 6, "latency_steps": latency, "geometry": {"offset_ratio": 0.05}})
     td = env.reset()
     assert (intensity_from_feature(td["observation"][:, env.config.observation_layout["intensity"]]) > 1e-3).all()
     env.rollout(latency + 5, Recorded(env), auto_reset=False, tensordict=td, break_when_any_done=False)

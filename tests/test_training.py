@@ -20,6 +20,7 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 
 import waterair.training.checkpoint as checkpoint_module
 from waterair.cli import training
+from waterair.cli.migrate import main as migrate_main
 from waterair.envs.config import EnvConfig
 from waterair.evaluation.policies import load_policy
 from waterair.evaluation.runner import compare_policies
@@ -81,7 +82,7 @@ def test_ppo_passes_over_each_batch_until_the_policy_has_moved_target_kl(target_
     # on the paper's physics with the quadrant's ±5° residual, where the first pass of every batch moves this tiny
     # policy by more than 1e-9 (on the measured-slope sea's full channel, or within the beacon's ±1°, the first
     # batch's first pass moves it less: a second pass runs)
-    paper = ("env/spectrum=jonswap", "env.channel=single_path", "env.sea.n_freq=16", "env/observation=quadrant")
+    paper = ("env/spectrum=jonswap", "env/channel=single_path", "env.sea.n_freq=16", "env/observation=quadrant")
     cfg = compose_cfg("agent=ppo", "total_frames=1200", f"agent.target_kl={target_kl}", *paper)
     metrics = train(cfg, tmp_path)
     per_pass = cfg.collector.frames_per_batch // cfg.buffer.batch_size  # 6 minibatches of 64 in 400 frames
@@ -324,17 +325,25 @@ def test_resume_compares_only_the_keys_a_group_option_sets(tmp_path):
         plan_resume(compose_cfg(*other), other)
 
 
-def test_a_run_of_the_first_releases_with_flat_env_keys_resumes_with_its_keys_in_their_groups(tmp_path):
-    paper = ("seed=3", "env/spectrum=jonswap", "env.channel=single_path")  # the first releases' physics
+def test_a_run_of_the_first_releases_resumes_once_migrated_with_the_physics_it_ran(tmp_path, capsys):
+    paper = ("seed=3", "env/spectrum=jonswap", "env/channel=single_path")  # the first releases' physics
     config = OmegaConf.to_container(compose_cfg(*paper), resolve=True)
     for group in ("sea", "geometry", "optics"):
         config["env"].update(config["env"].pop(group))  # how config.yaml read before the groups
-    del config["env"]["spectrum"], config["env"]["channel"]  # keys they did not have: their defaults then
-    config["env"].update(n_wavenumbers=48, wavenumber_cutoff=10.0)  # and with the other sea's keys
+    del config["env"]["spectrum"], config["env"]["channel"], config["env"]["beacon"]  # keys they did not have
+    config["env"].update(n_wavenumbers=48, wavenumber_cutoff=10.0, lattice_nodes=7, montecarlo_rays=100)  # all keys
     (tmp_path / "config.yaml").write_text(OmegaConf.to_yaml(config))
     overrides = [f"resume={tmp_path}", "env/sea=moderate"]
+    with pytest.raises(ValueError, match=rf"^resume: {tmp_path} was written by an earlier release; python -m waterair"):
+        plan_resume(compose_cfg(*overrides), overrides)
+    migrate_main([str(tmp_path)])
+    assert capsys.readouterr().out == f"{tmp_path}: rewritten (the original kept as config.yaml.orig)\n"
+    assert OmegaConf.load(tmp_path / "config.yaml.orig") == OmegaConf.create(config)
     plan = plan_resume(compose_cfg(*overrides), overrides)
-    assert plan.config.env.sea.wind == 12.0 and "n_wavenumbers" not in plan.config.env.sea
+    assert dict(plan.config.env.channel) == {"name": "single_path"} and "n_wavenumbers" not in plan.config.env.sea
     assert env_config(plan.config, compile_kernel=False) == env_config(compose_cfg(*paper), compile_kernel=False)
     with pytest.raises(ValueError, match=r"^resume: env.sea.wind=8 changes env.sea.wind \(the run has 12.0\)"):
         plan_resume(compose_cfg(f"resume={tmp_path}", "env.sea.wind=8"), [f"resume={tmp_path}", "env.sea.wind=8"])
+    migrate_main([str(tmp_path)])  # a second time: nothing to do
+    assert capsys.readouterr().out == f"{tmp_path}: already current\n"
+

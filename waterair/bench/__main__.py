@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="a train.py override for every run, SB3's included (repeatable), e.g. env.channel=single_path",
+        help="a train.py override for every run, SB3's included (repeatable), e.g. env/channel=single_path",
     )
     quality = sub.add_parser("quality", help="wall time to a greedy 0.95 of UB: ours vs Stable-Baselines3 DDPG")
     quality.add_argument("--budgets", type=int, nargs="+", default=[1600, 8000, 40000], help="our runs' frames")

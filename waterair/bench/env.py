@@ -26,7 +26,7 @@ SAMPLED_STEPS = 20
 """Steps over which the path solve's convergence is counted (outside the timed loop)."""
 
 
-SEAS = {"paper": {"spectrum": "jonswap"}, "ocean": {"spectrum": "elfouhaily", "n_dir": 16}}
+SEAS = {"paper": {"sea": {"spectrum": "jonswap"}}, "ocean": {"sea": {"spectrum": "elfouhaily", "n_dir": 16}}}
 """The seas of ``env/spectrum=jonswap|elfouhaily`` (conf/env/spectrum), by short names."""
 
 
@@ -52,9 +52,8 @@ def worker(
         device=device,
         dtype=dtype,
         max_steps=10**6,
-        channel=channel,
+        channel={"name": channel, **lattice_settings(lattice)},
         **SEAS[sea],
-        **lattice_settings(lattice),
     )
     td = env.reset()
     generator = torch.Generator().manual_seed(0)
@@ -147,11 +146,11 @@ def compile_times(batch: int = 16) -> dict:
 
 
 def lattice_settings(lattice: str) -> dict:
-    """``"nodes:span"`` as the env's lattice keywords (none for "")."""
+    """``"nodes:span"`` as the full channel's keys (none for "")."""
     if not lattice:
         return {}
     nodes, span = lattice.split(":")
-    return {"lattice_nodes": int(nodes), "lattice_span": float(span)}
+    return {"nodes": int(nodes), "span": float(span)}
 
 
 def run_worker(

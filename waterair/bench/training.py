@@ -193,7 +193,7 @@ def bench_training(
     overrides: tuple[str, ...] = (),
 ) -> dict:
     """Every measurement of the module docstring, in this order, on the threads ``threads`` chooses;
-    ``overrides`` (train.py's, e.g. ``env.channel=single_path``) apply to every run, SB3's included."""
+    ``overrides`` (train.py's, e.g. ``env/channel=single_path``) apply to every run, SB3's included."""
     count, why = choose_threads(threads)
     extra = list(overrides)
     record: dict = {"benchmark": "training", "overrides": extra}

@@ -6,10 +6,8 @@ Hydra will (every job of a ``-m`` sweep), refuses keys the config does not have 
 runs the program's own validation. A sweep's launcher is checked too (:mod:`waterair.cli.launch`),
 and a search's keys and space by its sweeper.
 Any problem exits with status 1 and one line on stderr, before Hydra creates a run directory.
-Adding a whole config group with ``+group=option`` stays allowed. The env's keys and options of the
-first releases (``env.wind``, ``env/spectrum=ocean``) are rewritten to today's (``env.sea.wind``,
-``env/spectrum=elfouhaily``) with a note on stderr (:func:`renamed`); the entry points hand the
-rewritten command line to Hydra.
+Adding a whole config group with ``+group=option`` stays allowed. A key of earlier releases (``env.wind``,
+``env.lattice_nodes``, ``env.channel=NAME``) is an error naming today's (:func:`check_renamed`).
 """
 
 from __future__ import annotations
@@ -28,7 +26,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from waterair.cli.errors import CommandLineError
 from waterair.cli.launch import check_launcher, runs_elsewhere
-from waterair.envs.legacy import MOVED, SPECTRUM_OPTIONS
+from waterair.envs.groups import RENAMED
 from waterair.training.config import CONF_DIR
 
 PASS_THROUGH = {
@@ -48,14 +46,14 @@ PLUGINS = {
 """Hydra options that come with a package: the package to install when the option is missing."""
 
 
-def preflight(config_name: str, argv: Sequence[str], check: Callable[[DictConfig, list[str]], None]) -> list[str]:
+def preflight(config_name: str, argv: Sequence[str], check: Callable[[DictConfig, list[str]], None]) -> None:
     """Compose every job of ``argv`` and ``check(cfg, overrides)`` each, then a sweep's launcher; exit with
     one line on a problem. A job that a scheduler runs on other machines is checked as on a CPU here
-    (``device=cuda`` is checked where it runs). Returns ``argv`` with renamed keys rewritten (:func:`renamed`)."""
-    argv = renamed(argv)
+    (``device=cuda`` is checked where it runs)."""
     if any(arg.split("=")[0] in PASS_THROUGH for arg in argv):
-        return argv
+        return
     try:
+        check_renamed(argv)
         hydra = sweep_config(config_name, argv) if any(arg in MULTIRUN for arg in argv) else None
         remote = hydra is not None and runs_elsewhere(hydra)
         search = hydra is not None and hydra.runtime.choices.get("hydra/sweeper") == "optuna"
@@ -72,29 +70,26 @@ def preflight(config_name: str, argv: Sequence[str], check: Callable[[DictConfig
         sys.exit(f"error: {one_line(error)}")
     except TypeError as error:  # a scalar where a list belongs, or the like
         sys.exit(f"error: a config value has the wrong type ({error})")
-    return argv
 
 
-OLD_KEY = re.compile(r"^([+~]*)env\.(\w+)(?=$|=)")
-SPECTRUM_OPTION = re.compile(r"^([+~]*env/spectrum=)(.*)$")
+OLD_KEY = re.compile(r"^[+~]*env\.(\w+)(?==|$)")
 
 
-def renamed(argv: Sequence[str]) -> list[str]:
-    """``argv`` with the env's flat keys of the first releases moved to their groups (``env.wind=12`` →
-    ``env.sea.wind=12``) and the sea's old option names replaced (``env/spectrum=ocean`` →
-    ``env/spectrum=elfouhaily``); one note on stderr for each rewritten argument (docs/environment.md,
-    "Renamed keys")."""
-    out = []
+def check_renamed(argv: Sequence[str]) -> None:
+    """Refuse a key of earlier releases with one line naming today's: ``env.wind=12`` (``env.sea.wind``),
+    ``env.lattice_nodes=5`` (``env.channel.nodes``), ``env.channel=single_path`` (the group
+    ``env/channel=single_path``). docs/environment.md, "Renamed keys"."""
     for arg in argv:
-        new = OLD_KEY.sub(lambda m: f"{m.group(1)}env.{MOVED[m.group(2)]}" if m.group(2) in MOVED else m.group(0), arg)
-        option = SPECTRUM_OPTION.match(new)
-        if option:
-            value = re.sub(r"\b(paper|ocean)\b", lambda m: SPECTRUM_OPTIONS[m.group(1)], option.group(2))
-            new = option.group(1) + value
-        if new != arg:
-            print(f'note: {arg} is {new} in this version (docs/environment.md, "Renamed keys")', file=sys.stderr)
-        out.append(new)
-    return out
+        old = OLD_KEY.match(arg)
+        if old is None:
+            continue
+        key, value = old.group(1), arg.partition("=")[2]
+        if key == "channel":
+            raise CommandLineError(f"{arg}: the channel is a config group now; write env/channel={value}")
+        if key in RENAMED:
+            raise CommandLineError(
+                f"env.{key} is env.{RENAMED[key]} in this version ({arg} → env.{RENAMED[key]}={value})"
+            )
 
 
 def jobs(argv: Sequence[str], hydra: DictConfig | None = None, search: bool = False) -> list[list[str]]:

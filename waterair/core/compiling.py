@@ -7,31 +7,36 @@ default, per sweep on Slurm): measured on the 2-core development machine (docs/b
 cache and 9–20 s out of a warm one, and then save 0.33 ms per frame (2,568 frames/s compiled, 1,380
 eager) on the paper's one-path channel. The full channel (the default) costs 4.3 ms a frame eager and
 0.6 ms compiled in the same loop (160,000 frames: 11 min 25 s eager, 3 min 14 s compiled), so compiling
-pays from far fewer frames there. ``auto`` compiles from :data:`MIN_FRAMES` frames on, for the channel,
-taking the cache as warm when it holds compiled graphs.
+pays from far fewer frames there. ``auto`` compiles from the channel's ``compile_frames`` on (a trait of each
+option of ``env/channel``, :mod:`waterair.physics.channel.registry`), taking the cache as warm when it holds
+compiled graphs.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Protocol
 
 CHOICES = ("auto", "true", "false")
-MIN_FRAMES = {"warm": 50_000, "cold": 300_000}
-"""Frames from which compiling saves time on the one-path channel: the compile time over the time it saves
-per frame."""
-MIN_FRAMES_FULL = {"warm": 30_000, "cold": 40_000}
-"""The same for the full channel: about 100–130 s of compiling over 3.7 ms saved a frame."""
 
 
-def compiling_pays(frames: int, cache: str | None = None, channel: str = "single_path") -> tuple[bool, str]:
+class Compiles(Protocol):
+    """What :func:`compiling_pays` reads of a channel: its name and the frames from which compiling pays."""
+
+    name: str
+    compile_frames: Mapping[str, int]
+
+
+def compiling_pays(frames: int, cache: str | None, channel: Compiles) -> tuple[bool, str]:
     """Whether ``frames`` env-steps on ``channel`` repay a compile, and a clause saying why (``cache``: warm or
-    cold, default :func:`cache_state`)."""
+    cold; None: :func:`cache_state`)."""
     cache = cache or cache_state()
-    least = (MIN_FRAMES_FULL if channel == "full" else MIN_FRAMES)[cache]
+    least = channel.compile_frames[cache]
     pays = frames >= least
     sign = "≥" if pays else "<"
-    where = f"on the {channel} channel with torch's compile cache {cache}"
+    where = f"on the {channel.name} channel with torch's compile cache {cache}"
     return pays, f"auto: {frames:,} frames to go {sign} {least:,} {where}"
 
 

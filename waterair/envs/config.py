@@ -7,8 +7,10 @@ the optics (``env.optics.aperture_diameter``, :class:`~waterair.physics.channel.
 drone's beacon (``env.beacon.divergence``, :class:`~waterair.physics.channel.Beacon`). Each
 physics value is validated once, where it is defined; the interface keys (``env.dt``, ...) are
 validated here. Every error names the key path (``env.sea.wind``), the value and the allowed range;
-docs/environment.md lists each key with its unit, default and range. The flat keys of the first
-releases (``env.wind``) are folded into their groups (:mod:`waterair.envs.legacy`).
+docs/environment.md lists each key with its unit, default and range. The channel is a group too
+(``env.channel.nodes``, :mod:`waterair.physics.channel.registry`), chosen by ``env/channel=``. A key of the first
+releases (``env.wind``, ``env.lattice_nodes``) is an error naming where it lives now; ``python -m
+waterair.cli.migrate RUN`` rewrites an old run's config.
 """
 
 from __future__ import annotations
@@ -21,18 +23,18 @@ from dataclasses import dataclass
 
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
-from waterair.envs.legacy import DEFAULT_SPECTRUM, SHARED_SEA_KEYS, as_mapping, nest
-from waterair.physics.channel import (
-    LATTICE_NODES,
-    LATTICE_SPAN,
-    Beacon,
-    ChannelModel,
-    LinkGeometry,
-    LocalEstimate,
-    MonteCarlo,
-    Transceiver,
-    channel_model,
+from waterair.envs.groups import (
+    DEFAULT_SPECTRUM,
+    PHYSICS,
+    SHARED_SEA_KEYS,
+    as_mapping,
+    build_sea,
+    physics_group,
+    plain,
+    unknown_key,
 )
+from waterair.physics.channel import CHANNELS, Beacon, Channel, ChannelModel, FullChannel, LinkGeometry, Transceiver
+from waterair.physics.channel import channel as build_channel
 from waterair.physics.sea import SeaState, sea_state
 
 ACTION_MODES = ("absolute", "delta", "residual")
@@ -94,13 +96,8 @@ class EnvConfig:
     geometry: LinkGeometry = LinkGeometry()  # env.geometry.*: where the ends are (docs/model.md §0)
     optics: Transceiver = Transceiver()  # env.optics.*: the ends' optics (docs/model.md §4-§5)
     beacon: Beacon = Beacon()  # env.beacon.*: the drone's beacon and the transmitter's detector (docs/model.md §4.9)
-    # channel (docs/model.md §4)
-    channel: str = "full"  # full | single_path (the paper's) | montecarlo | counting (the last two: slow)
-    lattice_nodes: int = LATTICE_NODES  # full channel on a two-scale sea: nodes per axis of the surface lattice
-    lattice_span: float = LATTICE_SPAN  # full channel: the lattice's half-width, in standard deviations of its Gaussian
-    montecarlo_rays: int = MonteCarlo.rays  # montecarlo and counting channels: surface rays per link and step
-    montecarlo_facets: int = MonteCarlo.facets  # counting tracer: unresolved-slope draws per surface ray
-    montecarlo_points: int = LocalEstimate.points  # local estimate: aperture points each surface hit lights
+    # env.channel.*; env/channel=full|single_path (the paper's)|montecarlo|counting (the last two: slow), §4
+    channel: Channel = FullChannel()
     # dynamics and interface (docs/environment.md)
     dt: float = 0.05  # s
     max_steps: int = 500  # steps per episode (truncation)
@@ -144,10 +141,11 @@ class EnvConfig:
     compile_kernel: bool = False
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "sea", _physics("sea", self.sea, SeaState, _build_sea))
-        object.__setattr__(self, "geometry", _physics("geometry", self.geometry, LinkGeometry, LinkGeometry))
-        object.__setattr__(self, "optics", _physics("optics", self.optics, Transceiver, Transceiver))
-        object.__setattr__(self, "beacon", _physics("beacon", self.beacon, Beacon, Beacon))
+        object.__setattr__(self, "sea", physics_group("sea", self.sea, SeaState, build_sea))
+        object.__setattr__(self, "geometry", physics_group("geometry", self.geometry, LinkGeometry, LinkGeometry))
+        object.__setattr__(self, "optics", physics_group("optics", self.optics, Transceiver, Transceiver))
+        object.__setattr__(self, "beacon", physics_group("beacon", self.beacon, Beacon, Beacon))
+        object.__setattr__(self, "channel", physics_group("channel", self.channel, Channel, build_channel))
         check_int("env.num_envs", self.num_envs, 1, 2**24)
         if not isinstance(self.compile_kernel, bool):  # a truthy 'auto' would compile silently
             raise ValueError(
@@ -195,10 +193,11 @@ class EnvConfig:
             )
         check_choice("env.solver", self.solver, ENV_SOLVERS)
         self.channel_model()  # validates the channel's settings, once
-        if self.channel != "single_path" and self.solver == "centroid":
+        if self.solver == "centroid" and not self.channel.centroid_solver:
+            serves = ", ".join(f"env/channel={name}" for name, kind in CHANNELS.items() if kind.centroid_solver)
             raise ValueError(
-                f"env.solver = 'centroid' only works with env.channel = 'single_path' (got {self.channel!r}); "
-                "the full channel tracks its point with newton"
+                f"env.solver = 'centroid' only works with {serves} (got env/channel={self.channel.name}); "
+                "the other channels track their point with newton"
             )
         check_int("env.newton_iterations", self.newton_iterations, 1, 20)
         for name, (low, high, unit) in PER_LINK.items():
@@ -233,15 +232,15 @@ class EnvConfig:
     def from_mapping(cls, values: Mapping) -> EnvConfig:
         """Build from a plain mapping (e.g. a resolved Hydra ``env`` group); unknown keys are errors.
 
-        The physics groups (``sea``, ``geometry``, ``optics``) are mappings of their keys or the objects
-        themselves; the flat keys of the first releases (``wind``) are folded into them.
+        The groups (``sea``, ``geometry``, ``optics``, ``beacon``, ``channel``) are mappings of their keys or the
+        objects themselves. A key of the first releases is an error naming where it lives now
+        (:data:`~waterair.envs.groups.RENAMED`).
         """
-        values = nest(values)
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(values) - known)
         if unknown:
-            raise ValueError(f"env.{unknown[0]} is not a known key; allowed: {', '.join(sorted(known))}")
-        return cls(**{k: _plain(v) for k, v in values.items()})
+            raise ValueError(unknown_key(unknown[0], known))
+        return cls(**{k: plain(v) for k, v in values.items()})
 
     def to_mapping(self) -> dict:
         """The keys that rebuild this config, the physics groups as nested mappings (the ``env`` group's shape)."""
@@ -251,11 +250,11 @@ class EnvConfig:
     def replace(self, **changes) -> EnvConfig:
         """A copy with ``changes`` applied (validated; unknown keys are errors).
 
-        A physics group given as a mapping changes only the keys it names (``sea={"wind": 8}``, or the flat
-        ``wind=8``); one that names another sea keeps the shared keys and takes that sea's own defaults.
+        A group given as a mapping changes only the keys it names (``sea={"wind": 8}``); one that names another
+        sea keeps the shared keys and takes that sea's own defaults, one that names another channel takes its
+        defaults (``channel={"name": "single_path"}``).
         """
         current = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}  # untouched groups stay built
-        changes = nest(changes)
         for group in PHYSICS:
             given = changes.get(group)
             if not isinstance(given, Mapping):
@@ -263,29 +262,22 @@ class EnvConfig:
             base = as_mapping(current[group])
             if group == "sea" and given.get("spectrum", base["spectrum"]) != base["spectrum"]:
                 base = {key: base[key] for key in SHARED_SEA_KEYS}
-            changes[group] = {**base, **given}
+            if group == "channel" and given.get("name", base["name"]) != base["name"]:
+                base = {}
+            changes = {**changes, group: {**base, **given}}
         return EnvConfig.from_mapping({**current, **changes})
 
     def channel_model(self) -> ChannelModel:
-        """The channel model ``channel`` names, for this sea and these optics (docs/environment.md, "Channel")."""
+        """The model of ``channel`` for this sea and these optics (docs/environment.md, "Channel")."""
         return self._channel
 
     @functools.cached_property
     def _channel(self) -> ChannelModel:
-        """Built once per config; an error names ``env.<setting>``."""
+        """Built once per config; an error names ``env.channel.<key>``."""
         try:
-            return channel_model(
-                self.channel,
-                self.optics,
-                self.sea.two_scale,
-                lattice_nodes=self.lattice_nodes,
-                lattice_span=self.lattice_span,
-                montecarlo_rays=self.montecarlo_rays,
-                montecarlo_facets=self.montecarlo_facets,
-                montecarlo_points=self.montecarlo_points,
-            )
+            return self.channel.model(self.optics, self.sea.two_scale)
         except ValueError as error:
-            raise ValueError(f"env.{error}") from None
+            raise ValueError(f"env.channel.{error}") from None
 
     @property
     def sensing(self) -> dict:
@@ -345,37 +337,6 @@ class EnvConfig:
         return self.dt * self.max_steps
 
 
-PHYSICS = ("sea", "geometry", "optics", "beacon")
-"""The env's physics groups: each a physics object, built from a mapping of its keys."""
-
-
-def _physics(group: str, value, kind: type, build):
-    """``value`` as a ``kind``: the object, or built from a mapping of its keys; errors name ``env.<group>.<key>``."""
-    if isinstance(value, kind):
-        return value
-    if not isinstance(value, Mapping):
-        raise ValueError(f"env.{group} = {value!r} must be a mapping of its keys (docs/environment.md)")
-    try:
-        return build(**{key: _plain(item) for key, item in value.items()})
-    except TypeError:  # a key the object does not have
-        known = [field.name for field in dataclasses.fields(kind)]
-        unknown = sorted(set(value) - set(known))
-        if not unknown:
-            raise
-        raise ValueError(f"env.{group}.{unknown[0]} is not a known key; allowed: {', '.join(known)}") from None
-    except ValueError as error:
-        raise ValueError(f"env.{group}.{error}") from None
-
-
-def _build_sea(spectrum: str = DEFAULT_SPECTRUM, **keys) -> SeaState:
-    try:
-        return sea_state(spectrum, **keys)
-    except ValueError as error:
-        if " is not a key of the " in str(error):
-            raise ValueError(f"{error} (env/spectrum chooses the sea)") from None
-        raise
-
-
 def _check_pair(
     name: str, pair: Sequence[float], low: float, high: float, unit: str, low_open: bool
 ) -> tuple[float, float]:
@@ -390,10 +351,3 @@ def _check_pair(
 def _check_list(name: str, value) -> None:
     if isinstance(value, str) or not isinstance(value, Sequence):
         raise ValueError(f"{name} = {value!r} must be a list, e.g. [a, b]")
-
-
-def _plain(value):
-    """OmegaConf containers → tuples (the dataclass is frozen and hashable)."""
-    if isinstance(value, Sequence) and not isinstance(value, str):
-        return tuple(value)
-    return value

@@ -1,6 +1,6 @@
 """TensorDict-native TorchRL environment of B independent water-air links (docs/environment.md).
 
-``WaterAirEnv(num_envs=1024, wind=12.0, device="cpu")`` or ``WaterAirEnv(EnvConfig(...))``.
+``WaterAirEnv(num_envs=1024, sea={"wind": 12.0}, device="cpu")`` or ``WaterAirEnv(EnvConfig(...))``.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from waterair.physics.surface import WaveSurface
 SENSOR_SEED_MASK = 0x5E5E5E5E
 """The sensor-noise generator is seeded with ``seed XOR`` this, independent of the seas'."""
 CHANNEL_SEED_MASK = 0x3C3C3C3C
-"""The generator of a channel that draws (the Monte Carlo tracer, ``env.channel=montecarlo``) is seeded
+"""The generator of a channel that draws (the Monte Carlo tracer, ``env/channel=montecarlo``) is seeded
 with ``seed XOR`` this."""
 
 

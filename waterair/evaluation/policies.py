@@ -30,12 +30,10 @@ INTERFACE_KEYS = (
     "dtype",
 )
 """Environment keys a learned policy keeps from its own training config; the scenario sets the rest."""
-TRAINED_LATTICE = ("env.lattice_nodes=7", "env.lattice_span=4.0")
-"""The full channel's lattice when ``paper`` was trained (unused by its one-path channel, but in its config)."""
 SHIPPED = {
     "default": (),
     "intensity": ("env/observation=intensity",),
-    "paper": ("+experiment=paper", *TRAINED_LATTICE),
+    "paper": ("+experiment=paper",),
 }
 """The shipped policies in :data:`ASSETS` (``NAME.pt``, ``NAME.yaml``, ``NAME_metrics.json``), which
 ``python evaluate.py`` evaluates when given no run or checkpoint, and the ``train.py`` overrides

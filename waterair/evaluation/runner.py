@@ -167,7 +167,7 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
     if compile_kernel == "auto":  # every policy, baseline and the bound roll out every scenario's points
         per_policy = sum(len(s.points) * s.realisations * s.steps * max(1, len(s.divergences)) for s in scenarios)
         frames = (len({p.label for p in policies}) + len(baselines) + 1) * per_policy
-        base = base.replace(compile_kernel=compiling_pays(frames, channel=base.channel)[0])
+        base = base.replace(compile_kernel=compiling_pays(frames, None, base.channel)[0])
     sensing = cfg.get("sensing", "trained")
     check_choice("sensing", sensing, SENSING)
     learned = []

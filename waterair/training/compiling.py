@@ -7,10 +7,11 @@ from __future__ import annotations
 
 from omegaconf import DictConfig, OmegaConf
 
-from waterair.core.compiling import CHOICES, MIN_FRAMES, MIN_FRAMES_FULL, cache_state, compiling_pays
+from waterair.core.compiling import CHOICES, cache_state, compiling_pays
 from waterair.core.validation import check_choice
+from waterair.physics.channel import channel
 
-__all__ = ["CHOICES", "MIN_FRAMES", "MIN_FRAMES_FULL", "cache_state", "compile_plan"]
+__all__ = ["CHOICES", "cache_state", "compile_plan"]
 
 
 def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -> tuple[DictConfig, str]:
@@ -25,7 +26,9 @@ def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -
     decided = {key: str(value).lower() == "true" for key, value in settings.items()}
     reason = "as configured"
     if automatic:
-        pays, reason = compiling_pays(frames_to_go, cache, str(cfg.env.channel))
+        pays, reason = compiling_pays(
+            frames_to_go, cache, channel(**OmegaConf.to_container(cfg.env.channel, resolve=True))
+        )
         decided.update({key: pays for key in automatic})
     plan = OmegaConf.merge(
         cfg, {"env": {"compile_kernel": decided["env.compile_kernel"]}, "compile_update": decided["compile_update"]}

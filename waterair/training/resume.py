@@ -18,7 +18,6 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from waterair.agents.checkpoint import load_state
-from waterair.envs import legacy
 from waterair.training.checkpoint import CHECKPOINT
 from waterair.training.config import CONF_DIR, validate
 
@@ -47,7 +46,12 @@ def plan_resume(cfg: DictConfig, overrides: list[str]) -> ResumePlan:
         raise ValueError(f"resume = {cfg.resume!r} does not exist; give a run directory (outputs/train/DATE/TIME)")
     if not (run_dir / "config.yaml").is_file():
         raise ValueError(f"resume = {cfg.resume!r} is not a waterair run directory (it has no config.yaml)")
-    saved = upgraded(OmegaConf.load(run_dir / "config.yaml"))
+    saved = OmegaConf.load(run_dir / "config.yaml")
+    if not isinstance(OmegaConf.select(saved, "env.channel"), DictConfig):  # a name, or none: before the group
+        raise ValueError(
+            f"resume: {run_dir} was written by an earlier release; python -m waterair.cli.migrate {run_dir} "
+            "rewrites its config in this version's keys, then resume it"
+        )
     checkpoint = run_dir / CHECKPOINT
     frames_done = int(load_state(checkpoint)["frames"]) if checkpoint.exists() else 0
     for override in OverridesParser.create().parse_overrides(overrides):
@@ -79,14 +83,6 @@ def plan_resume(cfg: DictConfig, overrides: list[str]) -> ResumePlan:
     except OmegaConfBaseException as error:  # a key this version reads is missing: an older run
         raise ValueError(f"resume: {run_dir / 'config.yaml'} is not a config this version can run ({error})") from None
     return ResumePlan(run_dir=run_dir, config=config, frames_done=frames_done)
-
-
-def upgraded(saved: DictConfig) -> DictConfig:
-    """A run's config with the env's flat keys of the first releases folded into their groups (``env.sea.wind``),
-    and the physics it ran where it left a key at a default that has since moved (:func:`legacy.saved`)."""
-    if "env" in saved:
-        saved.env = OmegaConf.create(legacy.saved(OmegaConf.to_container(saved.env, resolve=False)))
-    return saved
 
 
 def _keys_set_by(override) -> list[str]:

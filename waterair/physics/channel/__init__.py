@@ -1,14 +1,14 @@
 """Channel models: how much of the beam reaches the receiver (docs/model.md §4).
 
-Every model is a :class:`~.model.ChannelModel` (the interface, §4.7), chosen by name through
-:func:`~.registry.channel_model`:
+Every model is a :class:`~.model.ChannelModel` (the interface, §4.7), each built by an option of
+the ``env/channel`` group (:mod:`.registry`: one class per option, registered in ``CHANNELS``):
 
 * :class:`SinglePath` (:mod:`.single_path`): the paper's model, one refracted path with a flat-sea
-  power law (``env.channel=single_path``, ``+experiment=paper``).
+  power law (``env/channel=single_path``, ``+experiment=paper``).
 * :class:`RayTube` (:mod:`.ray_tube`): the exact power through one refraction point, with its
   lensing (the ray-tube factor), bounded by the aperture at caustics; the calm-sea reference G_0.
 * :class:`TwoScale` (:mod:`.lattice`): every point of the resolved surface blurred by the
-  unresolved slopes and the aperture (``env.channel=full`` on the measured-slope sea).
+  unresolved slopes and the aperture (``env/channel=full`` on the measured-slope sea).
 * :class:`LocalEstimate` (:mod:`.local_estimate`): the Monte Carlo reference as a local estimate (every
   surface hit sends its light to points of the aperture through the facet density), on a two-scale sea.
 * :class:`MonteCarlo` (:mod:`.montecarlo`): the hit-counting ray tracer, the local estimate's check where
@@ -44,7 +44,16 @@ from waterair.physics.channel.ray_tube import (
     ray_tube_factor,
     ray_tube_light,
 )
-from waterair.physics.channel.registry import CHANNELS, channel_model
+from waterair.physics.channel.registry import (
+    CHANNELS,
+    Channel,
+    CountingChannel,
+    FullChannel,
+    MonteCarloChannel,
+    SinglePathChannel,
+    channel,
+    channel_model,
+)
 from waterair.physics.channel.single_path import ChannelGain, SinglePath, calm_sea_gain, calm_sea_gains, channel_gain
 
 __all__ = [
@@ -54,23 +63,29 @@ __all__ = [
     "BeaconReading",
     "LATTICE_NODES",
     "LATTICE_SPAN",
+    "Channel",
     "ChannelGain",
     "ChannelModel",
+    "CountingChannel",
+    "FullChannel",
     "LightSamples",
     "LinkEnds",
     "LinkGeometry",
     "LocalEstimate",
     "MonteCarlo",
+    "MonteCarloChannel",
     "MonteCarloLight",
     "RayTube",
     "Reception",
     "SinglePath",
+    "SinglePathChannel",
     "Transceiver",
     "TwoScale",
     "brightest",
     "calm_sea_gain",
     "calm_sea_gains",
     "calm_sea_reference",
+    "channel",
     "channel_gain",
     "channel_model",
     "flat_sea_irradiance",

@@ -90,7 +90,7 @@ def facet_share(incoming: torch.Tensor, normal: torch.Tensor, mean_slope: torch.
 
 @dataclass(frozen=True)
 class LocalEstimate(RayEstimate):
-    """The local estimate as a channel model (``env.channel=montecarlo`` on a two-scale sea; slow, for
+    """The local estimate as a channel model (``env/channel=montecarlo`` on a two-scale sea; slow, for
     evaluation): ``rays`` surface rays per link and step from a proposal ``proposal_beams`` beam divergences
     wide around the calm-sea departure, each sending its light to ``points`` points of the aperture. Eager
     (it draws from the caller's generator). It needs unresolved slopes (Σ > 0); on a sea without them the

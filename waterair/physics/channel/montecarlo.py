@@ -111,7 +111,7 @@ class RayEstimate(ChannelModel):
 
 @dataclass(frozen=True)
 class MonteCarlo(RayEstimate):
-    """The hit-counting tracer as a channel model (``env.channel=counting``, and ``montecarlo`` on a sea without
+    """The hit-counting tracer as a channel model (``env/channel=counting``, and ``montecarlo`` on a sea without
     unresolved slopes; slow, for evaluation): ``rays``
     surface rays per link and step, ``facets`` unresolved-slope draws each, from a proposal
     ``proposal_beams`` beam divergences wide around the calm-sea departure, counted across the

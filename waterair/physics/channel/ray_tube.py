@@ -45,7 +45,7 @@ caustic, each with |ζ'| replaced by sqrt(ζ'² + κ), sums to the exact Gaussia
 class RayTube(ChannelModel):
     """The exact power through the tracked refraction point, with its lensing (eq. 4.4), bounded at
     caustics by the aperture through the surface's third derivatives along the Hessian's axes: the full
-    channel on a sea without unresolved slopes (``env.channel=full`` on the paper's sea)."""
+    channel on a sea without unresolved slopes (``env/channel=full`` on the paper's sea)."""
 
     def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
         return calm_sea_reference(tx, rx, self.optics)

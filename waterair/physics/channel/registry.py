@@ -1,22 +1,30 @@
-"""The channel models by the names a configuration gives them (``env.channel``, docs/environment.md, "Channel").
+"""The channel models as a configuration chooses them (``env/channel=NAME``, docs/environment.md, "Channel").
 
-:func:`channel_model` is the one place a name becomes a model:
+Each option of the ``env/channel`` group is one frozen dataclass here holding only its own settings
+(``env.channel.nodes``, ``env.channel.rays``, ...), registered in :data:`CHANNELS` by its ``name``, and
+it builds its :class:`~.model.ChannelModel` for a sea and the optics:
 
-* ``single_path``: :class:`~.single_path.SinglePath`, the paper's one path;
-* ``full``: every refraction point with its lensing, the unresolved slopes and the aperture:
-  :class:`~.lattice.TwoScale` on a sea that carries unresolved slopes, :class:`~.ray_tube.RayTube` (its
-  limit without them) on one that does not;
-* ``montecarlo``: the reference (slow; for evaluation): the local estimate
+* ``full`` (:class:`FullChannel`): every refraction point with its lensing, the unresolved slopes and the
+  aperture: :class:`~.lattice.TwoScale` on a sea that carries unresolved slopes, :class:`~.ray_tube.RayTube`
+  (its limit without them) on one that does not;
+* ``single_path`` (:class:`SinglePathChannel`): :class:`~.single_path.SinglePath`, the paper's one path;
+* ``montecarlo`` (:class:`MonteCarloChannel`): the reference (slow; for evaluation): the local estimate
   (:class:`~.local_estimate.LocalEstimate`) on a sea that carries unresolved slopes, the hit-counting
   tracer on one that does not (its facets are then the resolved surface itself);
-* ``counting``: :class:`~.montecarlo.MonteCarlo`, the hit-counting tracer on any sea: the local estimate's
-  own check where counting is precise (a large aperture, a wide beam).
+* ``counting`` (:class:`CountingChannel`): :class:`~.montecarlo.MonteCarlo`, the hit-counting tracer on any
+  sea: the local estimate's own check where counting is precise (a large aperture, a wide beam).
+
+A new model is one module, one class here with its entry in :data:`CHANNELS`, and one YAML in
+``conf/env/channel/``.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from collections.abc import Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import ClassVar
 
 from waterair.core.validation import check_choice
 from waterair.physics.channel.geometry import Transceiver
@@ -27,78 +35,102 @@ from waterair.physics.channel.montecarlo import MonteCarlo
 from waterair.physics.channel.ray_tube import RayTube
 from waterair.physics.channel.single_path import SinglePath
 
-CHANNELS = ("single_path", "full", "montecarlo", "counting")
-"""The names of :func:`channel_model`."""
-MONTECARLO_RAYS = MonteCarlo.rays
-MONTECARLO_FACETS = MonteCarlo.facets
-MONTECARLO_POINTS = LocalEstimate.points
+
+@dataclass(frozen=True)
+class Channel:
+    """One option of ``env/channel``: its settings, its traits, and the model it builds. The settings are
+    validated once, by the model as it is built (those the model for this sea does not use, beside it)."""
+
+    name: ClassVar[str]
+    compile_frames: ClassVar[Mapping[str, int]] = MappingProxyType({"warm": 50_000, "cold": 300_000})
+    """Frames of a run from which compiling its step repays the compile, with torch's compile cache warm or cold
+    (the one-path channel's, measured in docs/benchmarks.md, "Training")."""
+    centroid_solver: ClassVar[bool] = False
+    """Whether the paper's centroid path solver (``env.solver=centroid``) can serve it."""
+
+    def model(self, optics: Transceiver, two_scale_sea: bool) -> ChannelModel:
+        """The channel model for ``optics`` on a sea that does (``two_scale_sea``) or does not carry unresolved
+        slopes."""
+        raise NotImplementedError
 
 
-def channel_model(
-    name: str,
-    optics: Transceiver,
-    two_scale_sea: bool,
-    *,
-    lattice_nodes: int = LATTICE_NODES,
-    lattice_span: float = LATTICE_SPAN,
-    montecarlo_rays: int = MONTECARLO_RAYS,
-    montecarlo_facets: int = MONTECARLO_FACETS,
-    montecarlo_points: int = MONTECARLO_POINTS,
-) -> ChannelModel:
-    """The model ``name`` (one of :data:`CHANNELS`) for ``optics`` on a sea that does (``two_scale_sea``) or
-    does not carry unresolved slopes. Every setting is validated once whichever model is chosen (by the
-    chosen model, or by its own model's check); an error names the setting by its keyword here
-    (``lattice_nodes = 4 is not allowed; …``)."""
-    check_choice("channel", name, CHANNELS)
-    given: dict[str, Any] = {
-        "lattice_nodes": lattice_nodes,
-        "lattice_span": lattice_span,
-        "montecarlo_rays": montecarlo_rays,
-        "montecarlo_facets": montecarlo_facets,
-        "montecarlo_points": montecarlo_points,
-    }
-    kind: type[ChannelModel]
-    if name == "single_path":
-        kind = SinglePath
-    elif name == "counting" or (name == "montecarlo" and not two_scale_sea):
-        kind = MonteCarlo
-    elif name == "montecarlo":
-        kind = LocalEstimate
-    else:
-        kind = TwoScale if two_scale_sea else RayTube
-    own = {field: keyword for keyword, (owner, field) in SETTINGS.items() if owner is kind or field in _fields(kind)}
-    model = _renamed(lambda: kind(optics, **{field: given[keyword] for field, keyword in own.items()}), own)
-    checked = set(own.values())
-    for keyword, (owner, field) in SETTINGS.items():
-        if keyword not in checked:
-            _renamed(lambda owner=owner, field=field, keyword=keyword: owner.check_settings(**{field: given[keyword]}),
-                     {field: keyword})  # fmt: skip
-            checked.add(keyword)
-    return model
+@dataclass(frozen=True)
+class FullChannel(Channel):
+    """Every refraction point, lensing, unresolved slopes and aperture (the default): ``nodes`` × ``nodes``
+    lattice nodes of half-width ``span`` standard deviations, in each of the two-scale model's two lattices."""
+
+    name = "full"
+    compile_frames = MappingProxyType({"warm": 30_000, "cold": 40_000})  # about 100-130 s over 3.7 ms a frame
+    nodes: int = LATTICE_NODES
+    span: float = LATTICE_SPAN
+
+    def model(self, optics: Transceiver, two_scale_sea: bool) -> ChannelModel:
+        if two_scale_sea:
+            return TwoScale(optics, nodes=self.nodes, span=self.span)
+        TwoScale.check_settings(nodes=self.nodes, span=self.span)
+        return RayTube(optics)
 
 
-SETTINGS = {
-    "lattice_nodes": (TwoScale, "nodes"),
-    "lattice_span": (TwoScale, "span"),
-    "montecarlo_rays": (MonteCarlo, "rays"),
-    "montecarlo_facets": (MonteCarlo, "facets"),
-    "montecarlo_points": (LocalEstimate, "points"),
+@dataclass(frozen=True)
+class SinglePathChannel(Channel):
+    """The paper's one refracted path with its flat-sea power law (``+experiment=paper``)."""
+
+    name = "single_path"
+    centroid_solver = True
+
+    def model(self, optics: Transceiver, two_scale_sea: bool) -> ChannelModel:
+        return SinglePath(optics)
+
+
+@dataclass(frozen=True)
+class MonteCarloChannel(Channel):
+    """The Monte Carlo reference (slow; for evaluation): ``rays`` surface rays per link and step, each lighting
+    ``points`` points of the aperture (the local estimate; the counting tracer on a sea without unresolved
+    slopes, with its own facets)."""
+
+    name = "montecarlo"
+    rays: int = LocalEstimate.rays
+    points: int = LocalEstimate.points
+
+    def model(self, optics: Transceiver, two_scale_sea: bool) -> ChannelModel:
+        if two_scale_sea:
+            return LocalEstimate(optics, rays=self.rays, points=self.points)
+        LocalEstimate.check_settings(points=self.points)
+        return MonteCarlo(optics, rays=self.rays)
+
+
+@dataclass(frozen=True)
+class CountingChannel(Channel):
+    """The hit-counting ray tracer (slow; for evaluation): ``rays`` surface rays per link and step, ``facets``
+    unresolved-slope draws each."""
+
+    name = "counting"
+    rays: int = MonteCarlo.rays
+    facets: int = MonteCarlo.facets
+
+    def model(self, optics: Transceiver, two_scale_sea: bool) -> ChannelModel:
+        return MonteCarlo(optics, rays=self.rays, facets=self.facets)
+
+
+CHANNELS: dict[str, type[Channel]] = {
+    kind.name: kind for kind in (FullChannel, SinglePathChannel, MonteCarloChannel, CountingChannel)
 }
-"""Each keyword of :func:`channel_model`: the model whose check validates it where the chosen model lacks it,
-and its field there (the Monte Carlo models share ``rays``)."""
+"""The options of ``env/channel`` by name."""
 
 
-def _fields(kind: type) -> set[str]:
-    return {field.name for field in dataclasses.fields(kind)}
+def channel(name: str = "full", **keys) -> Channel:
+    """The channel ``name`` with ``keys``; a key it does not have is an error naming it and its keys."""
+    check_choice("name", name, CHANNELS)
+    kind = CHANNELS[name]
+    known = [field.name for field in dataclasses.fields(kind)]
+    unknown = sorted(set(keys) - set(known))
+    if unknown:
+        own = f"its keys: {', '.join(known)}" if known else "it has no keys"
+        raise ValueError(f"{unknown[0]} is not a key of the {name} channel; {own}")
+    return kind(**keys)
 
 
-def _renamed(build, names: dict[str, str]):
-    """``build()``; an error naming a field is re-worded with its keyword (``nodes`` → ``lattice_nodes``)."""
-    try:
-        return build()
-    except ValueError as error:
-        message = str(error)
-        for field, keyword in names.items():
-            if message.startswith(f"{field} "):
-                message = keyword + message[len(field) :]
-        raise ValueError(message) from None
+def channel_model(name: str, optics: Transceiver, two_scale_sea: bool, **keys) -> ChannelModel:
+    """The model of the channel ``name`` (with its ``keys``) for ``optics`` on a sea that does or does not
+    carry unresolved slopes (:meth:`Channel.model`)."""
+    return channel(name, **keys).model(optics, two_scale_sea)

@@ -2,7 +2,7 @@
 
     G = G_p(d_water, d_air) · G_ref(θ1) · G_D(α_D) · G_A(α_A)
 
-:class:`SinglePath` is it as a channel model (``env.channel=single_path``, ``+experiment=paper``): one
+:class:`SinglePath` is it as a channel model (``env/channel=single_path``, ``+experiment=paper``): one
 ray of weight G_p G_ref along the tracked path. Distances in metres, angles in radians.
 """
 
