@@ -1,4 +1,4 @@
-"""Every refraction point of a link at once: multi-start Newton on Fermat's principle (docs/model.md §3.3).
+"""Every refraction point of a link at once: multi-start Newton on Fermat's principle (docs/model.md §1.5).
 
 :func:`solve_path` follows one path, continued from the calm-sea point. A sea with steep short waves
 has several stationary points of the optical path length L(x, y) at once (minima, saddles and
