@@ -43,10 +43,13 @@ TINY = [
 ]
 """Overrides that shrink a training run to seconds: a few links, a coarse sea, small networks, eager."""
 
+
 def paper_physics(**sea) -> dict:
     """The paper's sea (with ``sea``'s keys) and channel, the defaults until they moved to the measured-slope sea and
     the full channel, as env keys: for tests of what was calibrated on them."""
     return {"sea": {"spectrum": "jonswap", **sea}, "channel": {"name": "single_path"}}
+
+
 F64 = torch.float64
 
 

@@ -38,7 +38,7 @@ def seas(model, count, seed):
         return WaveSurface.sample(
             sea_state(wind=12.0, spectrum="elfouhaily", n_wavenumbers=8, n_dir=4), count, seed=seed, dtype=F64
         )
-    return WaveSurface.sample(sea_state(wind=12.0), count, seed=seed, dtype=F64)
+    return WaveSurface.sample(sea_state("jonswap", wind=12.0), count, seed=seed, dtype=F64)
 
 
 @pytest.mark.parametrize("model", MODELS, ids=lambda m: type(m).__name__)

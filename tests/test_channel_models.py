@@ -118,7 +118,7 @@ def test_an_unknown_channel_is_a_one_line_error():
 def test_on_a_calm_sea_aligned_ends_receive_the_reference_gain(model, offset):
     """G / G_0 = 1 along the calm-sea path, for every model that compiles (the tracer has its own test):
     exactly for the one-path models, within 0.5 % for the lattice (the aperture's blur on a trapezoid rule)."""
-    sea = sea_state(wind=12.0, spectrum="elfouhaily", n_wavenumbers=8, n_dir=4) if model.prepared_keys else sea_state()
+    sea = sea_state("elfouhaily", wind=12.0, n_wavenumbers=8, n_dir=4) if model.prepared_keys else sea_state("jonswap")
     surface = calm(WaveSurface.sample(sea, 2, seed=0, dtype=F64))
     tx, rx = ends(offset, 2)
     point = flat_sea_point(tx, rx, OPTICS.n_water, OPTICS.n_air)
@@ -146,7 +146,7 @@ def test_a_compiling_model_traces_once_for_every_divergence_and_measures_what_th
 
     from torch._dynamo.testing import CompileCounter
 
-    sea = sea_state(wind=12.0, spectrum="elfouhaily", n_wavenumbers=8, n_dir=4) if model.prepared_keys else sea_state()
+    sea = sea_state("elfouhaily", wind=12.0, n_wavenumbers=8, n_dir=4) if model.prepared_keys else sea_state("jonswap")
     surface = WaveSurface.sample(sea, 3, seed=1, dtype=F64)
     tx, rx = ends(0.2, 3)
     point = flat_sea_point(tx, rx, OPTICS.n_water, OPTICS.n_air)

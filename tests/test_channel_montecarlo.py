@@ -23,7 +23,7 @@ BEAM = beam_divergence(OPTICS.divergence, OPTICS.wavelength)
 
 def test_monte_carlo_on_a_calm_sea_counts_the_closed_form():
     """Rays through a calm surface counted on the 5 cm aperture: the closed form within 3 standard errors."""
-    surface = calm(WaveSurface.sample(sea_state(wind=12.0, n_freq=4, n_dir=4), 2, seed=0, dtype=F64))
+    surface = calm(WaveSurface.sample(sea_state("jonswap", wind=12.0, n_freq=4, n_dir=4), 2, seed=0, dtype=F64))
     tx, rx = ends(0.3, 2)
     point = flat_sea_point(tx, rx, OPTICS.n_water, OPTICS.n_air)
     axis = (point - tx) / torch.linalg.vector_norm(point - tx, dim=-1, keepdim=True)

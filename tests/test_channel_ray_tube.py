@@ -96,7 +96,7 @@ def test_flat_sea_irradiance_at_normal_incidence_is_the_closed_form(depth, heigh
 def test_flat_sea_ray_tube_factor_equals_the_closed_form_and_the_ray_map(offset):
     """Eq. (4.4) with the Hessian Newton builds, the closed form (4.5) and finite differences of the
     ray map agree to 1e-6 relative on a calm sea at any offset."""
-    surface = calm(WaveSurface.sample(sea_state(wind=12.0, n_freq=4, n_dir=4), 2, seed=0, dtype=F64))
+    surface = calm(WaveSurface.sample(sea_state("jonswap", wind=12.0, n_freq=4, n_dir=4), 2, seed=0, dtype=F64))
     tx, rx = ends(offset, 2)
     point = flat_sea_point(tx, rx, OPTICS.n_water, OPTICS.n_air)
     hessian = hessian_at(surface, point, 0.0, tx, rx)
@@ -110,7 +110,7 @@ def test_flat_sea_ray_tube_factor_equals_the_closed_form_and_the_ray_map(offset)
 @pytest.mark.parametrize("wind", [4.0, 12.0])
 def test_ray_tube_factor_matches_finite_differences_of_the_ray_map_on_a_wavy_sea(wind):
     """Lensing included: 1e-5 relative at every converged path of 16 paper seas (foci and all)."""
-    surface = WaveSurface.sample(sea_state(wind=wind), 16, seed=4, dtype=F64)
+    surface = WaveSurface.sample(sea_state("jonswap", wind=wind), 16, seed=4, dtype=F64)
     tx, rx = ends(0.1, 16)
     path = solve_path(surface, tx, rx, 2.0)
     assert bool(path.valid.all())
@@ -127,7 +127,7 @@ def test_ray_tube_agrees_with_the_monte_carlo_reference_link_by_link():
     link's lensed irradiance (eq. 4.4, aperture-bounded) against rays counted on the 5 cm aperture,
     within 2 % + 3 standard errors, where the lensing spreads the links by more than 30 %. Near a
     fold a second point joins within the aperture and one point is not the channel (docs/model.md §4.2)."""
-    surface = WaveSurface.sample(sea_state(wind=4.0, n_freq=24, n_dir=8), 4, seed=8, dtype=F64)
+    surface = WaveSurface.sample(sea_state("jonswap", wind=4.0, n_freq=24, n_dir=8), 4, seed=8, dtype=F64)
     tx, rx = ends(0.1, 4)
     path = solve_path(surface, tx, rx, 2.0)
     time = torch.full((4,), 2.0, dtype=F64)

@@ -39,7 +39,7 @@ def test_calm_sea_gain_matches_closed_form():
 
 def aligned_and_random(batch=256, seed=0):
     tx, rx = LinkGeometry().positions(torch.float64)
-    surface = WaveSurface.sample(sea_state(wind=12.0), batch, seed=seed, dtype=torch.float64)
+    surface = WaveSurface.sample(sea_state("jonswap", wind=12.0), batch, seed=seed, dtype=torch.float64)
     return solve_path(surface, tx, rx, 2.0)
 
 

@@ -83,11 +83,11 @@ def test_a_sweep_is_checked_job_by_job_before_it_starts():
 @pytest.mark.parametrize(
     ("argv", "line"),
     [
-        (["-m", "env.wind=4,12"], "error: env.wind is env.sea.wind in this version (env.wind=4,12 → env.sea.wind=4,12)"),
-        (["+env.aperture_diameter=0.1"], "error: env.aperture_diameter is env.optics.aperture_diameter in this version"),
+        (["-m", "env.wind=4,12"], "error: env.wind is env.sea.wind in this version (env.wind=4,12 → env.sea.wind=4,1"),
+        (["+env.aperture_diameter=0.1"], "error: env.aperture_diameter is env.optics.aperture_diameter in this versi"),
         (["env.lattice_nodes=5"], "error: env.lattice_nodes is env.channel.nodes in this version"),
-        (["env.channel=single_path"], "error: env.channel=single_path: the channel is a config group now; write env/ch"),
-        (["env/spectrum=ocean"], "error: env/spectrum=ocean is not an option of env/spectrum; choose one of elfouhaily"),
+        (["env.channel=single_path"], "error: env.channel=single_path: the channel is a config group now; write en"),
+        (["env/spectrum=ocean"], "error: env/spectrum=ocean is not an option of env/spectrum; choose one of elfouha"),
     ],
 )
 def test_a_key_of_the_first_releases_is_one_line_naming_todays(argv, line):
@@ -103,6 +103,7 @@ def test_todays_keys_and_unknown_ones_are_not_taken_for_old_ones():
     assert rejection("train.py", ["env.sea.gamma=2", "env/spectrum=elfouhaily"]).startswith(
         "error: env.sea.gamma is not a config key"
     )
+
 
 def test_hydra_messages_become_one_line():
     error = ValueError("In 'config': Could not find 'agent/sac'\n\n"

@@ -134,7 +134,7 @@ def test_the_concluding_graph_agrees_with_eager(monkeypatch, inductor, eager_pat
 
 
 FULL_CHANNEL = {
-    "ray-tube": (RayTube, {"wind": 12.0, "n_freq": 32, "n_dir": 16}),
+    "ray-tube": (RayTube, {"spectrum": "jonswap", "wind": 12.0, "n_freq": 32, "n_dir": 16}),
     "two-scale": (TwoScale, {"wind": 12.0, **OCEAN}),
 }
 """The full channel's model on each sea: the ray tube on the paper's, the two-scale lattice on the measured-slope
@@ -153,7 +153,7 @@ def test_the_full_channels_light_and_reception_compile_to_what_they_measure_eage
     monkeypatch.setattr(light_module, "upper_bound", functools.partial(light_module.upper_bound, iterations=1))
     kind, sea = FULL_CHANNEL[model]
     channel, batch = kind(Transceiver()), 4
-    surface = WaveSurface.sample(sea_state(**sea), batch, seed=1)
+    surface = WaveSurface.sample(sea_state(**{"spectrum": "jonswap", **sea}), batch, seed=1)
     tx, rx = (v.expand(batch, 3).contiguous() for v in LinkGeometry(offset_ratio=0.2).positions())
     point = flat_sea_point(tx, rx)
     path = solve_path(surface, tx, rx, 1.0)
@@ -190,7 +190,7 @@ def test_fixed_iteration_paths_obey_snell_and_match_the_adaptive_solver(
     where the bound is tight, and compiled in float32, as environments run it to finish the links of a large
     batch (two iterations at a time, as in the tests above)."""
     tx, rx = (v.to(dtype) for v in default_positions)
-    surface = WaveSurface.sample(sea_state(wind=12.0), 256, seed=3, dtype=dtype)
+    surface = WaveSurface.sample(sea_state("jonswap", wind=12.0), 256, seed=3, dtype=dtype)
     adaptive = solve_path(surface, tx, rx, 4.0)
     fixed = solve_path(surface, tx, rx, 4.0, method="newton_fixed", compiled=compiled)
     assert fixed.valid.float().mean().item() >= 0.99
@@ -208,7 +208,7 @@ def test_fixed_iteration_paths_obey_snell_and_match_the_adaptive_solver(
 
 def test_fixed_iteration_solver_without_finishing_flags_unconverged_links_invalid(default_positions):
     tx, rx = default_positions
-    surface = WaveSurface.sample(sea_state(wind=12.0), 64, seed=7, dtype=torch.float64)
+    surface = WaveSurface.sample(sea_state("jonswap", wind=12.0), 64, seed=7, dtype=torch.float64)
     options = FixedNewtonOptions(iterations=1, finish=False)
     path = solve_path(surface, tx, rx, 0.0, method="newton_fixed", options=options)
     finished = solve_path(surface, tx, rx, 0.0, method="newton_fixed", options=FixedNewtonOptions(iterations=1))

@@ -117,7 +117,8 @@ def test_an_evaluation_runs_every_link_at_the_scenarios_divergence_whatever_the_
     """Training's closing evaluation takes the training environment, its divergence range too: the rollouts put
     every link at optics.divergence, the divergence its link budget converts gain at, as for any scenario."""
     scenario = Scenario("train", "training point", None, ((12.0, 0.1, 0.0),), 2, 6, 7)
-    base = EnvConfig(channel={"name": "single_path"}, sea={"n_wavenumbers": 24, "n_dir": 8}, optics={"divergence": 0.01})
+    sea = {"n_wavenumbers": 24, "n_dir": 8}
+    base = EnvConfig(channel={"name": "single_path"}, sea=sea, optics={"divergence": 0.01})
     ranged = base.replace(divergence_range=(0.005, 0.1))
     fixed = compare_policies(base, {"flat": "flat_snell"}, scenario)
     assert compare_policies(ranged, {"flat": "flat_snell"}, scenario) == fixed

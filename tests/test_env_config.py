@@ -11,9 +11,11 @@ from collections import Counter
 
 import pytest
 from conftest import ROOT
+from omegaconf import OmegaConf
 
 from waterair.core import validation
 from waterair.envs.config import EnvConfig
+from waterair.envs.groups import PHYSICS, plain
 from waterair.envs.link import link_budget
 from waterair.physics.channel import (
     Beacon,
@@ -271,3 +273,65 @@ def test_the_defaults_are_the_measured_slope_sea_and_the_full_channel_and_the_pa
     assert (paper.sea.spectrum, dict(paper.channel)) == ("jonswap", {"name": "single_path"})
     sea = {key: value for key, value in paper.sea.items() if key != "spectrum"}
     assert JonswapSea(**sea) == JonswapSea()  # the paper's sea as it always was: 64 × 32, γ 3.3
+
+
+DEFAULT_OF_GROUP = {"sea": ElfouhailySea(), "geometry": LinkGeometry(), "optics": Transceiver(), "beacon": Beacon()}
+"""The object whose defaults a group key has where its config names no other: the default sea, and so on."""
+OWNER = {"sea.gamma": JonswapSea(), "sea.n_freq": JonswapSea()}
+OWNER |= {f"channel.{field.name}": kind() for kind in GROUPS["channel"] for field in dataclasses.fields(kind)}
+
+
+def dataclass_default(key: str):
+    """The default the dataclasses give ``key`` (``num_envs``, ``sea.wind``, ``channel.rays``): the one source."""
+    if "." not in key:
+        return EnvConfig.__dataclass_fields__[key].default
+    group, name = key.split(".")
+    if key == "sea.spectrum":
+        return EnvConfig().sea.spectrum
+    if key == "channel.name":
+        return EnvConfig().channel.name
+    return getattr(OWNER.get(key, DEFAULT_OF_GROUP.get(group)), name)
+
+
+def same_default(documented: str, default) -> bool:
+    """Whether a docs cell's leading value (``2e4``, ``null``, ``[]``, ``clear_ocean``) states ``default``."""
+    if default is None or default == ():
+        return documented == {None: "null", (): "[]"}[default]
+    if isinstance(default, bool):
+        return documented == str(default).lower()
+    if isinstance(default, int | float):
+        return float(documented) == float(default)
+    return documented == default
+
+
+def documented_defaults() -> dict[str, str]:
+    """Each key row of docs/environment.md's table: the leading value of its default column."""
+    rows = {}
+    for line in (ROOT / "docs" / "environment.md").read_text().splitlines():
+        match = re.match(r"^\| `([\w.]+)`(?:, `([\w.]+)`)? \| [^|]* \| ([^ |]+)", line)
+        key = match and match.group(1)
+        if key and (key in RANGES or key in EnvConfig.__dataclass_fields__ or "." in key):
+            for key in filter(None, match.group(1, 2)):
+                rows[key] = match.group(3)
+    return rows
+
+
+def test_each_default_is_stated_once_by_the_dataclasses_and_the_yaml_and_docs_restate_it():
+    """The dataclasses are the one source of the env's defaults: docs/environment.md's table lists every key with
+    that default, and conf/env's YAMLs (the group, the default sea, the default channel) hold the same values,
+    but for what the entry points fill in (device, seed) or decide (compile_kernel)."""
+    documented = documented_defaults()
+    fields = {f.name for f in dataclasses.fields(EnvConfig) if f.name not in PHYSICS}
+    grouped = {f"{g}.{f.name}" for g, obj in DEFAULT_OF_GROUP.items() for f in dataclasses.fields(obj)} - {"sea.flat"}
+    grouped |= set(OWNER) | {"sea.spectrum", "channel.name"}
+    assert set(documented) == fields | grouped
+    wrong = {key: value for key, value in documented.items() if not same_default(value, dataclass_default(key))}
+    assert wrong == {}
+    conf = ROOT / "conf" / "env"
+    yaml = OmegaConf.to_container(OmegaConf.load(conf / "default.yaml"))
+    yaml["sea"] |= OmegaConf.to_container(OmegaConf.load(conf / "spectrum" / f"{EnvConfig().sea.spectrum}.yaml"))
+    yaml["channel"] = OmegaConf.to_container(OmegaConf.load(conf / "channel" / f"{EnvConfig().channel.name}.yaml"))
+    decided = {"device": "${device}", "seed": "${seed}", "compile_kernel": "auto"}
+    assert {key: yaml.pop(key) for key in decided} == decided
+    expected = {key: value for key, value in EnvConfig().to_mapping().items() if key not in decided}
+    assert {key: plain(value) for key, value in yaml.items()} == {key: plain(v) for key, v in expected.items()}

@@ -37,7 +37,7 @@ def snell_residual(path) -> torch.Tensor:
 def test_flat_sea_newton_matches_bisection(offset_ratio, azimuth, method, compiled):
     link = LinkGeometry(tx_depth=8.0, rx_height=12.0, offset_ratio=offset_ratio, offset_azimuth_deg=azimuth)
     tx, rx = link.positions(torch.float64)
-    surface = WaveSurface.sample(sea_state(flat=True), 4, seed=0, dtype=torch.float64)
+    surface = WaveSurface.sample(sea_state("jonswap", flat=True), 4, seed=0, dtype=torch.float64)
     # start away from the answer so that Newton has work to do
     init = torch.tensor([[3.0, -2.0]], dtype=torch.float64).expand(4, 2)
     path = solve_path(surface, tx, rx, 0.0, method=method, init=init, compiled=compiled)
@@ -53,7 +53,7 @@ def test_flat_sea_newton_matches_bisection(offset_ratio, azimuth, method, compil
 @pytest.mark.parametrize("dtype,bound", [(torch.float64, 1e-9), (torch.float32, 1e-4)])
 def test_wavy_sea_paths_obey_snell_and_connect_the_ends(dtype, bound, default_positions):
     tx, rx = default_positions
-    surface = WaveSurface.sample(sea_state(wind=12.0), 4096, seed=3, dtype=dtype)
+    surface = WaveSurface.sample(sea_state("jonswap", wind=12.0), 4096, seed=3, dtype=dtype)
     path = solve_path(surface, tx.to(dtype), rx.to(dtype), 4.0)
     valid = path.valid
     assert valid.float().mean().item() >= 0.99
@@ -69,7 +69,7 @@ def test_wavy_sea_paths_obey_snell_and_connect_the_ends(dtype, bound, default_po
 
 def test_float32_and_float64_find_the_same_point(default_positions):
     tx, rx = default_positions
-    sea = sea_state(wind=12.0)
+    sea = sea_state("jonswap", wind=12.0)
     p64 = solve_path(WaveSurface.sample(sea, 512, seed=9, dtype=torch.float64), tx, rx, 2.0)
     p32 = solve_path(WaveSurface.sample(sea, 512, seed=9, dtype=torch.float32), tx.float(), rx.float(), 2.0)
     both = p64.valid & p32.valid
@@ -79,7 +79,7 @@ def test_float32_and_float64_find_the_same_point(default_positions):
 
 def test_warm_start_converges_in_fewer_iterations(default_positions):
     tx, rx = default_positions
-    surface = WaveSurface.sample(sea_state(wind=12.0), 256, seed=4, dtype=torch.float64)
+    surface = WaveSurface.sample(sea_state("jonswap", wind=12.0), 256, seed=4, dtype=torch.float64)
     first = solve_path(surface, tx, rx, 1.0)
     cold = solve_path(surface, tx, rx, 1.05)
     warm = solve_path(surface, tx, rx, 1.05, init=first.point[:, :2])
@@ -91,7 +91,7 @@ def test_warm_start_converges_in_fewer_iterations(default_positions):
 
 def test_per_element_times(default_positions):
     tx, rx = default_positions
-    surface = WaveSurface.sample(sea_state(wind=12.0), 4, seed=5, dtype=torch.float64)
+    surface = WaveSurface.sample(sea_state("jonswap", wind=12.0), 4, seed=5, dtype=torch.float64)
     t = torch.tensor([0.0, 1.0, 2.0, 3.0], dtype=torch.float64)
     together = solve_path(surface, tx, rx, t)
     for b in range(4):
@@ -102,7 +102,7 @@ def test_per_element_times(default_positions):
 @pytest.mark.slow
 def test_centroid_agrees_with_newton_within_a_centimetre(default_positions):
     tx, rx = default_positions
-    surface = WaveSurface.sample(sea_state(wind=12.0), 32, seed=6, dtype=torch.float32)
+    surface = WaveSurface.sample(sea_state("jonswap", wind=12.0), 32, seed=6, dtype=torch.float32)
     newton = solve_path(surface, tx.float(), rx.float(), 3.0)
     centroid = solve_path(surface, tx.float(), rx.float(), 3.0, method="centroid")
     distance = torch.linalg.vector_norm(newton.point - centroid.point, dim=-1)
@@ -111,7 +111,7 @@ def test_centroid_agrees_with_newton_within_a_centimetre(default_positions):
 
 def test_centroid_on_a_flat_sea_is_exact(default_positions):
     tx, rx = default_positions
-    surface = WaveSurface.sample(sea_state(flat=True), 2, seed=0, dtype=torch.float64)
+    surface = WaveSurface.sample(sea_state("jonswap", flat=True), 2, seed=0, dtype=torch.float64)
     init = torch.tensor([[0.5, 0.5]], dtype=torch.float64).expand(2, 2)
     newton = solve_path(surface, tx, rx, 0.0)
     centroid = solve_path(surface, tx, rx, 0.0, method="centroid", init=init)
@@ -121,7 +121,7 @@ def test_centroid_on_a_flat_sea_is_exact(default_positions):
 
 def test_iteration_cap_flags_paths_invalid_never_nan(default_positions):
     tx, rx = default_positions
-    surface = WaveSurface.sample(sea_state(wind=12.0), 64, seed=7, dtype=torch.float64)
+    surface = WaveSurface.sample(sea_state("jonswap", wind=12.0), 64, seed=7, dtype=torch.float64)
     path = solve_path(surface, tx, rx, 0.0, options=NewtonOptions(max_iter=1))
     assert (~path.valid).any()
     for value in (path.point, path.departure, path.theta1, path.d_air):
@@ -151,7 +151,7 @@ def test_no_nan_or_inf_for_any_sea(wind, fetch, offset, seed, method, spectrum):
 
 def test_unknown_method_is_rejected(default_positions):
     tx, rx = default_positions
-    surface = WaveSurface.sample(sea_state(), 1, seed=0, dtype=torch.float64)
+    surface = WaveSurface.sample(sea_state("jonswap"), 1, seed=0, dtype=torch.float64)
     with pytest.raises(ValueError, match="method = 'raytrace'"):
         solve_path(surface, tx, rx, 0.0, method="raytrace")
 
@@ -178,7 +178,7 @@ def test_a_compiled_path_kernel_keeps_one_graph_for_every_working_set(kernel, mo
     settings = (N_W, N_A) if kernel == "fermat" else (N_W, N_A, 2, 1e-10, 1e-4, 2.0)
     traced = torch.compile(function, dynamic=True, backend=counter)
     torch._dynamo.reset()
-    surface = WaveSurface.sample(sea_state(wind=12.0, n_freq=16, n_dir=8), 8, seed=2, dtype=torch.float64)
+    surface = WaveSurface.sample(sea_state("jonswap", wind=12.0, n_freq=16, n_dir=8), 8, seed=2, dtype=torch.float64)
     tx, rx = (v.expand(8, 3).contiguous() for v in default_positions)
     starts = torch.randn(8, 3, generator=torch.Generator().manual_seed(0), dtype=torch.float64)  # (x, y) a view
     for rows in (8, 5, 3, 2, 1):

@@ -20,7 +20,7 @@ def jonswap_reference(omega: float, wind: float, fetch: float, gamma: float = 3.
 
 
 def test_check_values_from_spec():
-    sea = sea_state(wind=12.0, fetch=2.0e4)
+    sea = sea_state("jonswap", wind=12.0, fetch=2.0e4)
     assert sea.alpha == pytest.approx(0.0155, rel=0.02)
     assert sea.omega_p == pytest.approx(1.62, rel=0.02)
     assert 2 * math.pi / sea.omega_p == pytest.approx(3.9, rel=0.02)
@@ -55,7 +55,7 @@ def test_spreading_is_zero_behind_the_wind():
 
 @pytest.mark.parametrize("wind", [0.5, 4.0, 12.0, 40.0])
 def test_band_holds_99_percent_of_m0(wind):
-    sea = sea_state(wind=wind)
+    sea = sea_state("jonswap", wind=wind)
     assert sea.m0(*sea.omega_band) / sea.m0() >= 0.99
 
 
@@ -63,7 +63,7 @@ def test_band_holds_99_percent_of_m0(wind):
 @pytest.mark.parametrize("amplitude,factor", [("standard", 1.0), ("paper", 0.5)])
 def test_amplitudes_carry_the_bin_energy(n_dir, amplitude, factor):
     """Σ_j a_ij² / 2 = factor · S(ω_i) Δω_i for any direction count."""
-    sea = sea_state(n_freq=16, n_dir=n_dir, amplitude=amplitude)
+    sea = sea_state("jonswap", n_freq=16, n_dir=n_dir, amplitude=amplitude)
     edges = sea.frequency_bins(torch.float64)
     omega, d_omega = 0.5 * (edges[1:] + edges[:-1]), edges[1:] - edges[:-1]
     a = sea.amplitudes(omega, d_omega)
@@ -71,7 +71,7 @@ def test_amplitudes_carry_the_bin_energy(n_dir, amplitude, factor):
 
 
 def test_flat_sea_has_zero_amplitudes():
-    sea = sea_state(flat=True)
+    sea = sea_state("jonswap", flat=True)
     edges = sea.frequency_bins(torch.float64)
     assert torch.all(sea.amplitudes(edges[:-1], edges[1:] - edges[:-1]) == 0)
 
@@ -91,7 +91,7 @@ def test_flat_sea_has_zero_amplitudes():
 )
 def test_bad_sea_parameters_name_key_value_and_range(kwargs, key):
     with pytest.raises(ValueError) as info:
-        sea_state(**kwargs)
+        sea_state("jonswap", **kwargs)
     message = str(info.value)
     assert message.startswith(f"{key} = ")
     assert repr(next(iter(kwargs.values()))) in message
@@ -104,7 +104,7 @@ def test_paper_sea_is_sampled_bit_for_bit_as_the_first_release():
     amplitude sqrt(2 S(ω) w Δω) with the spreading weights normalised per frequency."""
     from waterair.physics.surface import WaveSurface
 
-    sea = sea_state(wind=9.0, fetch=3e4, n_freq=12, n_dir=5)
+    sea = sea_state("jonswap", wind=9.0, fetch=3e4, n_freq=12, n_dir=5)
     got = WaveSurface.sample(sea, 3, seed=11, dtype=torch.float64)
 
     generator = torch.Generator().manual_seed(11)

@@ -126,7 +126,7 @@ def test_capillary_waves_travel_at_their_own_speed():
 
 
 def test_paper_sea_carries_no_unresolved_slopes_and_a_flat_sea_none_at_all():
-    paper = sea_state()
+    paper = sea_state("jonswap")
     assert paper.mean_square_slope().unresolved == 0.0
     assert torch.all(WaveSurface.sample(paper, 4, seed=0).unresolved == 0)
     calm = sea_state(spectrum="elfouhaily", flat=True)
@@ -136,7 +136,7 @@ def test_paper_sea_carries_no_unresolved_slopes_and_a_flat_sea_none_at_all():
 
 def test_paper_sea_resolved_slopes_are_its_band_integral():
     """The paper's band holds 41 % of Cox-Munk at 12 m/s (the issue's table): ∫ S ω⁴/g² dω over [0.6, 6] ω_p."""
-    sea = sea_state(wind=12.0)
+    sea = sea_state("jonswap", wind=12.0)
     low, high = sea.omega_band
     omega = torch.linspace(low, high, 100_001, dtype=torch.float64)
     want = torch.trapezoid(sea.frequency_spectrum(omega) * omega**4 / G**2, omega).item()

@@ -9,14 +9,14 @@ from waterair.physics.sea import sea_state
 from waterair.physics.surface import WaveSurface, harmonic_sums, lattice_harmonic_sums
 
 
-def surface64(batch=8, seed=0, **sea):
-    return WaveSurface.sample(sea_state(**sea), batch, seed=seed, dtype=torch.float64)
+def surface64(batch=8, seed=0, spectrum="jonswap", **sea):
+    return WaveSurface.sample(sea_state(spectrum, **sea), batch, seed=seed, dtype=torch.float64)
 
 
 @pytest.mark.parametrize("amplitude,factor", [("standard", 1.0), ("paper", 0.5)])
 def test_ensemble_variance_matches_m0(amplitude, factor):
     """Var η over 512 realisations at 16 well-separated points equals the discretised m0."""
-    sea = sea_state(amplitude=amplitude)
+    sea = sea_state("jonswap", amplitude=amplitude)
     surface = WaveSurface.sample(sea, 512, seed=1, dtype=torch.float64)
     x = torch.linspace(0.0, 3000.0, 16, dtype=torch.float64).expand(512, 16)
     eta = surface.height(x, 0.5 * x, 7.0)
@@ -30,7 +30,7 @@ def test_ensemble_variance_matches_m0(amplitude, factor):
 
 def test_height_matches_direct_double_sum():
     """η from an independent loop over (i, j) in float64 Python math."""
-    sea = sea_state(n_freq=5, n_dir=4, wind_direction_deg=30.0)
+    sea = sea_state("jonswap", n_freq=5, n_dir=4, wind_direction_deg=30.0)
     surface = WaveSurface.sample(sea, 2, seed=3, dtype=torch.float64)
     x, y, t = 3.7, -1.2, 2.5
     got = surface.height(torch.tensor([x, x], dtype=torch.float64), torch.tensor([y, y], dtype=torch.float64), t)
@@ -49,7 +49,7 @@ def test_eager_sums_over_many_points_match_a_float64_double_sum_in_every_chunk()
     sea's sum (a float64 loop over harmonics), in order, and the orders agree with each other."""
     from waterair.physics.surface import EAGER_CHUNK_ELEMENTS, harmonic_sums
 
-    sea = sea_state(n_freq=16, n_dir=8)
+    sea = sea_state("jonswap", n_freq=16, n_dir=8)
     seas, points = 7, 400
     surface = WaveSurface.sample(sea, seas, seed=5)
     rows = EAGER_CHUNK_ELEMENTS // (points * surface.num_harmonics)
@@ -122,7 +122,7 @@ def test_realisations_in_a_batch_are_independent():
 
 
 def test_frequencies_are_jittered_inside_their_bins():
-    sea = sea_state(n_freq=8, n_dir=2)
+    sea = sea_state("jonswap", n_freq=8, n_dir=2)
     surface = WaveSurface.sample(sea, 64, seed=4, dtype=torch.float64)
     edges = sea.frequency_bins(torch.float64)
     omega = surface.omega.reshape(64, 8, 2)[..., 0]
@@ -146,13 +146,13 @@ def test_row_assignment_resets_a_subset():
 
 def test_batch_size_is_validated():
     with pytest.raises(ValueError, match="batch_size = 0"):
-        WaveSurface.sample(sea_state(), 0)
+        WaveSurface.sample(sea_state("jonswap"), 0)
 
 
 @pytest.mark.slow
 def test_compiled_kernel_matches_eager_and_leaves_eager_callers_eager(inductor):
     """torch.compile of the harmonic sums gives the eager values; asking for it switches nothing else."""
-    sea = sea_state(n_freq=8, n_dir=4)
+    sea = sea_state("jonswap", n_freq=8, n_dir=4)
     s = WaveSurface.sample(sea, 3, seed=0, dtype=torch.float64)
     x = torch.tensor([[0.1, 2.0], [3.0, -1.0], [0.0, 5.0]], dtype=torch.float64)
     eager = s.evaluate(x, -x, 1.5)
@@ -167,9 +167,9 @@ def test_compiled_kernel_matches_eager_and_leaves_eager_callers_eager(inductor):
 def test_per_realisation_wind_matches_separate_seas():
     """A batch with winds (4, 12) equals two single-wind samples drawn with the same numbers."""
     winds = torch.tensor([4.0, 12.0], dtype=torch.float64)
-    mixed = WaveSurface.sample(sea_state(), 2, seed=5, dtype=torch.float64, wind=winds)
+    mixed = WaveSurface.sample(sea_state("jonswap"), 2, seed=5, dtype=torch.float64, wind=winds)
     for row, wind in enumerate(winds.tolist()):
-        alone = WaveSurface.sample(sea_state(wind=wind), 2, seed=5, dtype=torch.float64)
+        alone = WaveSurface.sample(sea_state("jonswap", wind=wind), 2, seed=5, dtype=torch.float64)
         torch.testing.assert_close(mixed.amplitude[row], alone.amplitude[row])
         torch.testing.assert_close(mixed.omega[row], alone.omega[row])
     assert mixed.variance()[1] > 3 * mixed.variance()[0]
@@ -211,7 +211,7 @@ def test_lattice_sums_equal_the_direct_sums_at_every_node(sea, nodes, seed, orde
     largest error): each node's phase is rounded once (ψ_c − g_i α − g_j β, the products small) as the direct
     sum rounds it (ωt + ε − kx x − ky y)."""
     batch = 6
-    surface = WaveSurface.sample(sea_state(**sea), batch, seed=seed, dtype=torch.float64)
+    surface = WaveSurface.sample(sea_state(**{"spectrum": "jonswap", **sea}), batch, seed=seed, dtype=torch.float64)
     centre, basis, grid, time, xy = random_lattices(batch, nodes, seed)
     expected = direct_sums(surface.harmonics, xy[..., 0], xy[..., 1], time)[: (1, 3, 6)[order]]
     k = torch.sqrt(surface.kx**2 + surface.ky**2)

@@ -346,4 +346,3 @@ def test_a_run_of_the_first_releases_resumes_once_migrated_with_the_physics_it_r
         plan_resume(compose_cfg(f"resume={tmp_path}", "env.sea.wind=8"), [f"resume={tmp_path}", "env.sea.wind=8"])
     migrate_main([str(tmp_path)])  # a second time: nothing to do
     assert capsys.readouterr().out == f"{tmp_path}: already current\n"
-

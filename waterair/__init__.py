@@ -4,7 +4,7 @@ The physics layer can be used on its own (no TorchRL needed)::
 
     from waterair import sea_state, WaveSurface, LinkGeometry, Transceiver, solve_path, channel_model
 
-    surface = WaveSurface.sample(sea_state(wind=12.0), batch_size=1024, seed=0)
+    surface = WaveSurface.sample(sea_state("jonswap", wind=12.0), batch_size=1024, seed=0)
     tx, rx = LinkGeometry().positions()
     path = solve_path(surface, tx, rx, t=0.0)
     model = channel_model("full", Transceiver(), two_scale_sea=False)   # README, "A short tour"

@@ -151,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         device = resolve_device(getattr(args, "device", "cpu"))
-        sea = sea_state(wind=args.wind) if args.suite == "physics" else None
+        sea = sea_state("jonswap", wind=args.wind) if args.suite == "physics" else None
     except ValueError as error:
         parser.exit(2, f"error: {error}\n")
     if args.suite == "training":

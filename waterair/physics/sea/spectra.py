@@ -13,8 +13,9 @@ SPECTRA: dict[str, type[SeaState]] = {"jonswap": JonswapSea, "elfouhaily": Elfou
 """The seas by name: the paper's JONSWAP band and the measured-slope Elfouhaily sea (docs/model.md §1)."""
 
 
-def sea_state(spectrum: str = "jonswap", **keys) -> SeaState:
-    """The sea ``spectrum`` names, with ``keys``; a key the sea does not have is an error naming it."""
+def sea_state(spectrum: str, **keys) -> SeaState:
+    """The sea ``spectrum`` names (no default: a config's default sea is ``EnvConfig``'s), with ``keys``; a key the sea
+    does not have is an error naming it."""
     check_choice("spectrum", spectrum, SPECTRA)
     kind = SPECTRA[spectrum]
     known = {field.name for field in dataclasses.fields(kind)}
