@@ -1,6 +1,7 @@
 """Shared fixtures and helpers: the default geometry as tensors, Hydra configs composed from conf/."""
 
 import os
+import platform
 from pathlib import Path
 
 import pytest
@@ -108,3 +109,26 @@ def preset_config(observation: str, sensor: str, batch: int, **overrides) -> Env
     values = {**OmegaConf.to_container(cfg.env, resolve=True), "num_envs": batch, "seed": 11, "max_steps": 10**6}
     values["compile_kernel"] = False  # the YAML's auto is decided by the entry points
     return EnvConfig.from_mapping({**values, **overrides})
+
+
+def machine() -> dict[str, str]:
+    """This process's identity, as a recording keeps it: the CPU's vendor and model (from /proc/cpuinfo; the
+    model name alone is generic on a virtual machine, so with its family, model and stepping numbers), torch's
+    version and commit, the instruction set torch dispatches to and torch's threads (1 under ``make test``'s
+    workers, set at the top of this file)."""
+    cpu = {}
+    cpuinfo = Path("/proc/cpuinfo")
+    if cpuinfo.exists():
+        for line in cpuinfo.read_text().splitlines():
+            key, _, value = line.partition(":")
+            if not line.strip():
+                break  # the first processor's block describes them all
+            cpu[key.strip()] = value.strip()
+    numbers = ", ".join(f"{key} {cpu.get(key, '?')}" for key in ("cpu family", "model", "stepping"))
+    return {
+        "cpu_vendor": cpu.get("vendor_id", platform.machine()),
+        "cpu_model": f"{cpu.get('model name', platform.processor())} ({numbers})",
+        "torch": f"{torch.__version__} ({torch.version.git_version})",
+        "capability": torch.backends.cpu.get_cpu_capability(),
+        "threads": str(torch.get_num_threads()),
+    }

@@ -35,12 +35,12 @@ machine's recording, after checking that it agrees with the others within the to
 """
 
 import itertools
-import platform
 import sys
 from pathlib import Path
 
 import pytest
 import torch
+from conftest import machine
 
 from waterair.envs.env import WaterAirEnv
 
@@ -107,29 +107,6 @@ def rollout(channel: str, sea: str, interface: str) -> dict[str, torch.Tensor]:
 
 def cases():
     return [(channel, sea, interface) for channel in CHANNELS for sea in SEAS for interface in INTERFACES]
-
-
-def machine() -> dict[str, str]:
-    """This process's identity, as a recording keeps it: the CPU's vendor and model (from /proc/cpuinfo; the
-    model name alone is generic on a virtual machine, so with its family, model and stepping numbers), torch's
-    version and commit, the instruction set torch dispatches to and torch's threads (1 under ``make test``'s
-    workers, tests/conftest.py)."""
-    cpu = {}
-    cpuinfo = Path("/proc/cpuinfo")
-    if cpuinfo.exists():
-        for line in cpuinfo.read_text().splitlines():
-            key, _, value = line.partition(":")
-            if not line.strip():
-                break  # the first processor's block describes them all
-            cpu[key.strip()] = value.strip()
-    numbers = ", ".join(f"{key} {cpu.get(key, '?')}" for key in ("cpu family", "model", "stepping"))
-    return {
-        "cpu_vendor": cpu.get("vendor_id", platform.machine()),
-        "cpu_model": f"{cpu.get('model name', platform.processor())} ({numbers})",
-        "torch": f"{torch.__version__} ({torch.version.git_version})",
-        "capability": torch.backends.cpu.get_cpu_capability(),
-        "threads": str(torch.get_num_threads()),
-    }
 
 
 def compare(got: dict[str, torch.Tensor], expected: dict[str, torch.Tensor], exact: bool) -> None:

@@ -2,7 +2,8 @@
 
 Layers, bottom to top: core → physics → envs → agents → evaluation → training → cli, then the entry
 points. A module may import its own layer and the ones below; nothing imports ``waterair.bench``.
-Imports inside functions count too.
+Inside training, the algorithms (``waterair.training.algorithms``) sit below the loop, its builders and
+its config: they import nothing else of training. Imports inside functions count too.
 """
 
 import ast
@@ -24,6 +25,8 @@ FORBIDDEN = {
     "evaluation": {"tensorboard"},
 }
 """Third-party packages each layer must not import."""
+BENEATH = {"waterair.training.algorithms": "waterair.training"}
+"""Sub-packages below the rest of their layer: they import nothing of it outside themselves."""
 MAX_LINES = 420
 """About 400 lines: a longer module is asking to be split."""
 
@@ -80,7 +83,14 @@ def layering_violations(imports: dict[str, set[str]]) -> list[str]:
             if layer in LAYERS and layer_of(target) in LAYERS:
                 if LAYERS.index(layer_of(target)) > LAYERS.index(layer):
                     problems.append(f"{source} ({layer}) imports {target} ({layer_of(target)}), a higher layer")
+            for low, rest in BENEATH.items():
+                if _within(source, low) and not _within(target, low) and _within(target, rest):
+                    problems.append(f"{source} imports {target} ({low} sits below the rest of {rest})")
     return problems
+
+
+def _within(module: str, package: str) -> bool:
+    return module == package or module.startswith(f"{package}.")
 
 
 def cycles(imports: dict[str, set[str]]) -> list[list[str]]:
@@ -157,8 +167,13 @@ def test_the_checks_catch_an_upward_import_and_a_cycle():
         "waterair.training.loop": {"waterair.training.builders"},
         "waterair.training.builders": {"waterair.training.loop"},
         "waterair.envs.env": {"waterair.bench.env"},
+        "waterair.training.algorithms.ppo": {"waterair.training.builders", "waterair.training.algorithms.base"},
     }
     problems = layering_violations(bad)
+    assert [p for p in problems if "sits below" in p] == [
+        "waterair.training.algorithms.ppo imports waterair.training.builders (waterair.training.algorithms sits "
+        "below the rest of waterair.training)"
+    ]
     assert any("higher layer" in p for p in problems)
     assert any("must not use torchrl" in p for p in problems)
     assert any("nothing imports bench" in p for p in problems)

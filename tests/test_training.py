@@ -9,12 +9,13 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import pytest
 import torch
-from conftest import ROOT, TINY, compose_config, rejection
+from conftest import ROOT, TINY, compose_config, machine, rejection
 from omegaconf import OmegaConf
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
@@ -59,12 +60,25 @@ def run_cli(*args, timeout=300, **popen):
     )
 
 
+SHORT_RUNS = {"ppo": [], "ddpg": ["agent=ddpg"], "td3": ["agent=td3"], "ou": ["agent=ddpg", "noise=ou"]}
+"""A short run of each agent (DDPG also with OU noise), on one torch thread so that it rounds alike on every core
+count."""
+RECORDED_RUNS = ROOT / "tests" / "data" / "training_reference.pt"
+"""Each short run's final actor and metrics as one machine trained them, with that machine's identity
+(:func:`conftest.machine`), written by ``python tests/test_training.py`` (:func:`record_short_runs`)."""
+ACTOR_TOLERANCE = {"rtol": 1e-3, "atol": 1e-5}
+"""Another machine's recording: its actor within this. A change of what a seed trains moves the weights by their
+own size; the rounding of AVX2 instead of AVX512 on the recording machine, 1e-6 relative."""
+
+
+def short_run(name: str, run_dir: Path) -> dict:
+    return train(compose_cfg("total_frames=1600", "threads=1", *SHORT_RUNS[name]), run_dir)
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "extra", [[], ["agent=ddpg"], ["agent=td3"], ["agent=ddpg", "noise=ou"]], ids=["ppo", "ddpg", "td3", "ou"]
-)
-def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, extra):
-    metrics = train(compose_cfg("total_frames=1600", *extra), tmp_path)
+@pytest.mark.parametrize("name", list(SHORT_RUNS))
+def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, name):
+    metrics = short_run(name, tmp_path)
     assert metrics["frames"] == 1600 and metrics["updates"] > 0
     logged = scalars(tmp_path)
     assert SCALARS <= set(logged), SCALARS - set(logged)
@@ -75,6 +89,38 @@ def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, extra):
     assert json.loads((tmp_path / "final_metrics.json").read_text())["frames"] == 1600
     rows = (tmp_path / "metrics.csv").read_text().splitlines()
     assert rows[0].startswith("frames,") and len(rows) == 1 + 4
+    # the same seed trains what it trained: bit for bit on the machine that recorded, else within a tolerance
+    holding = [r for r in torch.load(RECORDED_RUNS, weights_only=True)["recordings"] if name in r["runs"]]
+    mine = [recorded for recorded in holding if recorded["identity"] == run_identity()]
+    assert holding, f"no machine's recording holds the {name} run"
+    for recorded in mine or holding:
+        expected = recorded["runs"][name]
+        assert set(state["actor"]) == set(expected["actor"])
+        for key, value in expected["actor"].items():
+            if mine:
+                assert torch.equal(state["actor"][key], value), f"{key}: not what this machine recorded"
+            else:
+                torch.testing.assert_close(state["actor"][key], value, **ACTOR_TOLERANCE)
+        if mine:
+            assert {key: metrics[key] for key in expected["metrics"]} == expected["metrics"]
+
+
+def run_identity() -> dict[str, str]:
+    """The identity a short run's recording keeps: this machine's, on the one thread the run uses."""
+    return {**machine(), "threads": "1"}
+
+
+def record_short_runs(path: Path = RECORDED_RUNS) -> None:
+    """Write this machine's recording of every short run to ``path``, in place of any earlier recording: run it
+    again after a change meant to move what a seed trains, and say in the commit what moved."""
+    runs = {}
+    for name in SHORT_RUNS:
+        with tempfile.TemporaryDirectory() as run_dir:
+            metrics = short_run(name, Path(run_dir))
+            actor = torch.load(Path(run_dir) / "checkpoints" / "last.pt", weights_only=True)["actor"]
+        runs[name] = {"actor": actor, "metrics": {k: v for k, v in metrics.items() if k != "train_seconds"}}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    torch.save({"recordings": [{"identity": run_identity(), "runs": runs}]}, path)
 
 
 @pytest.mark.parametrize("target_kl,passes", [("null", None), ("1e-9", 1)])
@@ -346,3 +392,7 @@ def test_a_run_of_the_first_releases_resumes_once_migrated_with_the_physics_it_r
         plan_resume(compose_cfg(f"resume={tmp_path}", "env.sea.wind=8"), [f"resume={tmp_path}", "env.sea.wind=8"])
     migrate_main([str(tmp_path)])  # a second time: nothing to do
     assert capsys.readouterr().out == f"{tmp_path}: already current\n"
+
+
+if __name__ == "__main__":
+    record_short_runs()

@@ -42,16 +42,9 @@ from torch import nn
 
 from waterair.bench.sb3 import sb3_ddpg
 from waterair.core.threads import choose_threads, torch_threads
-from waterair.training.builders import (
-    TRANSITION_KEYS,
-    make_actor,
-    make_buffer,
-    make_critic,
-    make_env,
-    make_loss,
-    make_optimisers,
-    make_update,
-)
+from waterair.training.algorithms.ddpg import DDPG
+from waterair.training.algorithms.off_policy import TRANSITION_KEYS
+from waterair.training.builders import make_actor, make_buffer, make_env
 from waterair.training.compiling import compile_plan
 from waterair.training.config import CONF_DIR
 
@@ -90,16 +83,17 @@ def bench_update(updates: int) -> dict:
     """Per-update milliseconds: our pipeline eager and compiled, its breakdown, and bare PyTorch."""
     cfg = compose_training(["agent=ddpg", "device=cpu", "env.compile_kernel=false"])
     env = make_env(cfg)
-    actor, critic = make_actor(cfg, env, "cpu"), make_critic(cfg, env, "cpu")
-    loss, target_update = make_loss(cfg, actor, None, critic, env)  # DDPG learns the actor itself
-    optim_actor, optim_critic = make_optimisers(cfg, loss)
+    ddpg = DDPG(cfg)
+    actor, critic = make_actor(cfg, env, "cpu"), ddpg.make_critic(env, "cpu")
+    loss, target_update = ddpg.make_loss(actor, None, critic, env)  # DDPG learns the actor itself
+    optim_actor, optim_critic = ddpg.make_optimisers(loss)
     with tempfile.TemporaryDirectory() as scratch:
-        buffer = make_buffer(cfg, Path(scratch), "cpu")
+        buffer = make_buffer(cfg, Path(scratch), "cpu", on_policy=DDPG.on_policy)
         _fill(buffer, env, BUFFER_FILL)
         record: dict = {}
         for compiled in (False, True):
-            cfg.compile_update = compiled
-            update = make_update(cfg, loss, target_update, optim_actor, optim_critic)
+            cfg.compile_update = compiled  # read by make_update (ddpg holds this cfg)
+            update = ddpg.make_update(loss, target_update, optim_actor, optim_critic)
             for i in range(30):  # warm-up (and the compile)
                 update(buffer.sample(), i)
             record["ours_compiled_ms" if compiled else "ours_eager_ms"] = _median_ms(

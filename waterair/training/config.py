@@ -18,18 +18,11 @@ from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.config import EnvConfig
 from waterair.envs.link import link_budget
 from waterair.envs.rewards import Reward
+from waterair.training.algorithms import ALGORITHMS
 from waterair.training.compiling import CHOICES as COMPILE_CHOICES
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 """The repository's Hydra config directory (the package is installed in place)."""
-LOSSES = {
-    "ddpg": "torchrl.objectives.DDPGLoss",
-    "td3": "torchrl.objectives.TD3Loss",
-    "ppo": "torchrl.objectives.ClipPPOLoss",
-}
-"""The loss class each ``agent.name`` instantiates (``agent.loss._target_``)."""
-PPO_CRITIC_LOSSES = ("l1", "l2", "smooth_l1")
-"""``ClipPPOLoss``'s ``loss_critic_type`` values."""
 POLICY_WEIGHTS = ("average", "last")
 """What the saved and evaluated policy is: the actor's Polyak average (its target network), or its last iterate."""
 NOISES = ("gaussian", "ou")
@@ -57,9 +50,7 @@ def validate(cfg: DictConfig) -> None:
     check_threads(cfg.get("threads", AUTO_THREADS))  # a run saved before the key: auto
     check_int("seed", cfg.seed, 0, 2**63 - 1)
     check_int("total_frames", cfg.total_frames, 1)
-    _check_agent(cfg.agent)
-    if cfg.agent.name == "ppo":
-        _check_ppo(cfg)
+    _check_agent(cfg)
     for net in ("actor", "critic"):
         check_choice(f"{net}.name", cfg[net].name, NETWORKS)
         check_range(f"{net}.lr", cfg[net].lr, 0.0, 1.0, low_open=True)
@@ -82,52 +73,15 @@ def validate(cfg: DictConfig) -> None:
     check_int("eval.seed", cfg.eval.seed, 0, 2**63 - 1)
 
 
-def _check_agent(agent: DictConfig) -> None:
-    check_choice("agent.name", agent.name, LOSSES)
+def _check_agent(cfg: DictConfig) -> None:
+    """The keys every agent has, then the chosen algorithm's own (:meth:`Algorithm.check`)."""
+    agent = cfg.agent
+    check_choice("agent.name", agent.name, ALGORITHMS)
     check_range("agent.gamma", agent.gamma, 0.0, 1.0, high_open=True)
     check_choice("agent.policy_weights", agent.policy_weights, POLICY_WEIGHTS)
-    check_choice("agent.loss._target_", agent.loss._target_, (LOSSES[agent.name],))
-    if agent.name == "ppo":
-        return
-    check_range("agent.tau", agent.tau, 0.0, 1.0, low_open=True)
-    if agent.policy_weights == "average" and agent.name == "ddpg" and not agent.loss.delay_actor:
-        raise ValueError(
-            "agent.policy_weights = 'average' needs the target actor it averages into; set "
-            "agent.loss.delay_actor=true or agent.policy_weights=last"
-        )
-    if agent.name == "td3":
-        check_int("agent.policy_delay", agent.policy_delay, 1, 1000)
-        check_range("agent.loss.policy_noise", agent.loss.policy_noise, 0.0, 10.0)
-        check_range("agent.loss.noise_clip", agent.loss.noise_clip, 0.0, 10.0)
-
-
-def _check_ppo(cfg: DictConfig) -> None:
-    """PPO's own keys, and the keys of other groups it reads in its own way."""
-    agent = cfg.agent
-    check_range("agent.lmbda", agent.lmbda, 0.0, 1.0)
-    check_range("agent.max_grad_norm", agent.max_grad_norm, 0.0, 1e6, low_open=True)
-    if agent.target_kl is not None:
-        check_range("agent.target_kl", agent.target_kl, 0.0, 10.0, low_open=True)
-    check_range("agent.loss.clip_epsilon", agent.loss.clip_epsilon, 0.0, 1.0, low_open=True)
-    check_range("agent.loss.critic_coeff", agent.loss.critic_coeff, 0.0, 1e6, low_open=True)
-    check_choice("agent.loss.loss_critic_type", agent.loss.loss_critic_type, PPO_CRITIC_LOSSES)
-    for flag in ("entropy_bonus", "normalize_advantage"):
-        if not isinstance(agent.loss[flag], bool):
-            raise ValueError(f"agent.loss.{flag} = {agent.loss[flag]!r} must be true or false")
-    if agent.policy_weights != "last":
-        raise ValueError("agent.policy_weights = 'average' is not allowed with agent=ppo (no target actor); use last")
-    if cfg.noise.name != "gaussian" or cfg.noise.sigma_end != cfg.noise.sigma_init:
-        raise ValueError(
-            f"agent=ppo learns its action noise, starting at noise.sigma_init; noise={cfg.noise.name} with "
-            f"sigma_end = {cfg.noise.sigma_end} is not allowed (use noise=gaussian with sigma_end = sigma_init)"
-        )
-    check_range("noise.sigma_init", cfg.noise.sigma_init, 0.0, 10.0, low_open=True)
-    check_int("buffer.batch_size", cfg.buffer.batch_size, 1, cfg.collector.frames_per_batch)
-    if cfg.checkpoint.keep_buffer:
-        raise ValueError(
-            "checkpoint.keep_buffer = true is not allowed with agent=ppo, which replays nothing: a resumed run "
-            "collects its next batch afresh"
-        )
+    algorithm = ALGORITHMS[agent.name]
+    check_choice("agent.loss._target_", agent.loss._target_, (algorithm.loss_target,))
+    algorithm.check(cfg)
 
 
 def _check_noise(noise: DictConfig) -> None:

@@ -1,7 +1,8 @@
-"""DDPG / TD3 training of the beam-alignment agent from a Hydra config (docs/training.md).
+"""PPO, DDPG or TD3 training of the beam-alignment agent from a Hydra config (docs/training.md).
 
 ``train(cfg, run_dir)`` reads as the list of steps it takes; :mod:`waterair.training.builders`
-builds each piece from its config group. ``train.py`` is the thin Hydra entry point.
+builds the shared pieces from their config groups and the algorithm that ``agent.name`` chooses
+(:mod:`waterair.training.algorithms`) builds its own. ``train.py`` is the thin Hydra entry point.
 """
 
 from __future__ import annotations
@@ -25,20 +26,8 @@ from waterair.evaluation.metrics import FADE_FRACTION, METRICS
 from waterair.evaluation.runner import compare_policies, reading
 from waterair.evaluation.scenarios import Scenario
 from waterair.physics.link import LinkBudget, link_performance
-from waterair.training.builders import (
-    env_config,
-    make_actor,
-    make_buffer,
-    make_collector,
-    make_critic,
-    make_env,
-    make_exploration,
-    make_learn,
-    make_link,
-    make_loss,
-    make_optimisers,
-    make_update,
-)
+from waterair.training.algorithms import create
+from waterair.training.builders import env_config, make_actor, make_buffer, make_collector, make_env, make_link
 from waterair.training.checkpoint import CHECKPOINT, Learner, Progress, load_checkpoint, save_checkpoint
 from waterair.training.compiling import compile_plan
 from waterair.training.config import validate
@@ -77,14 +66,15 @@ def _train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None]) -> d
     cfg, compiles = compile_plan(cfg, cfg.total_frames - frames_done)
     progress(f"Running {compiles}")
 
-    # Create the environment, agent, exploration, optimisers and replay buffer
+    # Create the environment, algorithm, agent, exploration, optimisers and replay buffer
     env = make_env(cfg)
     link = make_link(cfg)
-    actor, critic = make_actor(cfg, env, device), make_critic(cfg, env, device)
-    exploration, noise = make_exploration(cfg, actor, env, device)
-    loss, target_update = make_loss(cfg, actor, exploration, critic, env)
-    optim_actor, optim_critic = make_optimisers(cfg, loss)
-    buffer = make_buffer(cfg, run_dir, device)
+    algorithm = create(cfg)
+    actor, critic = make_actor(cfg, env, device), algorithm.make_critic(env, device)
+    exploration, noise = algorithm.make_exploration(actor, env, device)
+    loss, target_update = algorithm.make_loss(actor, exploration, critic, env)
+    optim_actor, optim_critic = algorithm.make_optimisers(loss)
+    buffer = make_buffer(cfg, run_dir, device, on_policy=algorithm.on_policy)
     base = env.base_env
     learner = Learner(
         actor,
@@ -102,8 +92,8 @@ def _train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None]) -> d
 
     # Create the collector, the update and learning steps and the logger
     collector = make_collector(cfg, env, exploration, counters.frames)
-    update = make_update(cfg, loss, target_update, optim_actor, optim_critic)
-    learn = make_learn(cfg, loss, update, buffer, noise)
+    update = algorithm.make_update(loss, target_update, optim_actor, optim_critic)
+    learn = algorithm.make_learn(loss, update, buffer, noise)
     log = RunLog(run_dir, resume_frames=counters.frames if resumed else None)
     if not resumed:
         log.text("config", "```\n" + OmegaConf.to_yaml(cfg, resolve=True) + "\n```")

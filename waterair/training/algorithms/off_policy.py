@@ -1,0 +1,125 @@
+"""What DDPG and TD3 share: a Q(s, a) critic, a noisy deterministic actor, target networks and replay.
+
+The exploration is the actor plus annealed Gaussian or Ornstein-Uhlenbeck noise; every collected
+transition goes to the replay buffer, and each update samples from all of it (docs/training.md).
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import torch
+from omegaconf import DictConfig
+from tensordict import TensorDict, TensorDictBase
+from tensordict.nn import TensorDictModule, TensorDictSequential
+from torchrl.modules import AdditiveGaussianModule, OrnsteinUhlenbeckProcessModule, ValueOperator
+
+from waterair.agents.networks import make_critic
+from waterair.core.validation import check_range
+from waterair.training.algorithms.base import Algorithm, Counters, Learn, Update, updates_per_batch
+
+TRANSITION_KEYS = (
+    "observation",
+    "action",
+    ("next", "observation"),
+    ("next", "reward"),
+    ("next", "done"),
+    ("next", "terminated"),
+)
+"""What the replay buffer stores: the losses read nothing else (the env's gains stay out)."""
+
+
+class OffPolicy(Algorithm):
+    """An actor-critic with target networks that learns from a replay of every transition."""
+
+    on_policy = False
+    value_loss: ClassVar[str]
+    """The loss entry of the critic(s)."""
+
+    @classmethod
+    def check(cls, cfg: DictConfig) -> None:
+        check_range("agent.tau", cfg.agent.tau, 0.0, 1.0, low_open=True)
+
+    @property
+    def policy_delay(self) -> int:
+        """Critic updates per actor update."""
+        return 1
+
+    def make_critic(self, env, device) -> ValueOperator:
+        """Q(s, a) of the ``critic`` group."""
+        sizes = env.observation_spec["observation"].shape[-1], env.action_spec.shape[-1]
+        return make_critic(*sizes, self.cfg.critic.hidden, self.cfg.critic.activation).to(device)
+
+    def make_exploration(self, actor: TensorDictModule, env, device):
+        """The actor, then annealed Gaussian or Ornstein-Uhlenbeck noise of the ``noise`` group.
+
+        The noise module anneals over ``noise.annealing_frames`` when stepped once per collected env
+        step. Noise acts only under ``ExplorationType.RANDOM``: evaluation runs the bare actor.
+        """
+        cfg = self.cfg
+        steps = max(1, cfg.noise.annealing_frames // cfg.env.num_envs)
+        spec = env.action_spec_unbatched.to(device)
+        noise: torch.nn.Module
+        if cfg.noise.name == "ou":
+            noise = OrnsteinUhlenbeckProcessModule(
+                spec=spec,
+                eps_init=1.0,
+                eps_end=cfg.noise.sigma_end / max(cfg.noise.sigma_init, 1e-12),
+                annealing_num_steps=steps,
+                theta=cfg.noise.theta,
+                sigma=cfg.noise.sigma_init,
+                device=device,
+            )
+        else:
+            noise = AdditiveGaussianModule(
+                spec=spec,
+                sigma_init=float(cfg.noise.sigma_init),
+                sigma_end=float(cfg.noise.sigma_end),
+                annealing_num_steps=steps,
+                device=device,
+            )
+        return TensorDictSequential(actor, noise), noise
+
+    def make_update(self, loss, target_update, optim_actor, optim_critic) -> Update:
+        """One backward of the critic's and (every ``policy_delay`` updates) the actor's loss, both optimisers'
+        steps, then the soft target update; returns the (actor, critic) losses as a detached ``[2]`` tensor."""
+        value_key, policy_delay = self.value_loss, self.policy_delay
+
+        def update(batch: TensorDict, count: int) -> torch.Tensor:
+            losses = loss(batch)
+            # Only the loss_* entries: the other outputs (pred_value, ...) still require grad.
+            update_actor = count % policy_delay == 0
+            total = losses[value_key] + (losses["loss_actor"] if update_actor else 0.0)
+            optim_actor.zero_grad(set_to_none=True)
+            optim_critic.zero_grad(set_to_none=True)
+            total.backward()
+            optim_critic.step()
+            if update_actor:
+                optim_actor.step()
+            target_update.step()
+            # Detached, not .item(): no host synchronisation (and no graph break) per update; the loop
+            # turns a whole batch of these into numbers once.
+            return torch.stack((losses["loss_actor"], losses[value_key])).detach()
+
+        return torch.compile(update) if self.cfg.compile_update else update
+
+    def make_learn(self, loss, update: Update, buffer, noise) -> Learn:
+        """Anneal the noise, store the batch's transitions, then take ``collector.updates_per_frame`` × its
+        frames updates, each on a sample of the whole replay; none before ``collector.init_random_frames``
+        (uniform random actions) or while the replay holds less than one sample."""
+        per_batch = updates_per_batch(self.cfg)
+        steps_per_batch = self.cfg.collector.frames_per_batch // self.cfg.env.num_envs
+        random_frames, batch_size = self.cfg.collector.init_random_frames, self.cfg.buffer.batch_size
+
+        def learn(batch: TensorDictBase, progress: Counters) -> list[torch.Tensor]:
+            noise.step(steps_per_batch)
+            buffer.extend(batch.select(*TRANSITION_KEYS).reshape(-1))
+            if progress.frames < random_frames or len(buffer) < batch_size:
+                return []
+            losses = []
+            for _ in range(per_batch):
+                losses.append(update(buffer.sample(), progress.updates))
+                progress.updates += 1
+            return losses
+
+        return learn
