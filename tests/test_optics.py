@@ -12,11 +12,13 @@ from waterair.physics.optics import (
     WATER_ATTENUATION_PER_M,
     angle_between,
     arrival_gain,
+    arrival_gain_over_cell,
     beam_divergence,
     critical_angle,
     departure_gain,
     fresnel_transmittance,
     path_gain,
+    peak_arrival_gain,
     refract,
 )
 
@@ -148,3 +150,24 @@ def test_angle_between_is_accurate_for_tiny_angles():
     u = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64)
     v = torch.tensor([math.sin(1e-9), 0.0, math.cos(1e-9)], dtype=torch.float64)
     assert angle_between(u, v).item() == pytest.approx(1e-9, rel=1e-6)
+
+
+@pytest.mark.parametrize("widths", [(0.03, 0.01), (0.02, 0.02), (0.0, 0.05), (0.04, 0.0)])
+def test_the_field_of_view_averaged_over_a_cell_is_the_share_of_the_cell_within_it(widths):
+    """G_A over a cell across which α_A changes by (a, b): against a float64 integral over the cell written here
+    (the inner uniform's share in closed form, the outer by the midpoint rule on 20,000 points), at margins
+    across the edge; outside the cell's reach it is a ray's G_A."""
+    a, b = widths
+    alpha = torch.linspace(0.10, 0.24, 57, dtype=torch.float64)
+    got = arrival_gain_over_cell(alpha, torch.tensor([a, b], dtype=torch.float64).expand(57, 2), 0.17, 1.2)
+    s = (torch.arange(20_000, dtype=torch.float64) + 0.5) / 20_000 - 0.5
+    left = 0.17 - alpha.unsqueeze(-1) - a * s  # what q t must stay below, for each s
+    inner = (left / b + 0.5).clamp(0.0, 1.0) if b > 0 else (left >= 0).double()
+    share = inner.mean(-1)
+    expected = peak_arrival_gain(0.17, 1.2) * torch.cos(alpha) * share
+    torch.testing.assert_close(got, expected, rtol=0, atol=1e-4 * peak_arrival_gain(0.17, 1.2))
+    far = (alpha - 0.17).abs() > (a + b) / 2 + 1e-12
+    assert torch.equal(got[far], arrival_gain(alpha, 0.17, 1.2)[far])
+    assert torch.equal(
+        arrival_gain_over_cell(alpha, torch.zeros(57, 2, dtype=torch.float64), 0.17), arrival_gain(alpha, 0.17)
+    )

@@ -156,6 +156,33 @@ def arrival_gain(alpha_a: torch.Tensor, half_fov: float, concentrator_index: flo
     return torch.where(inside, gain, torch.zeros_like(gain))
 
 
+def arrival_gain_over_cell(
+    alpha_a: torch.Tensor, steps: torch.Tensor, half_fov: float, concentrator_index: float = 1.0
+) -> torch.Tensor:
+    """G_A averaged over a lattice node's cell (docs/model.md §4.3, "The field of view's edge"): (n_c² / sin² ω_A)
+    cos α_A times the share of the cell seen within the field of view, where α_A changes linearly across the
+    cell by ``steps`` ``[..., 2]`` (rad) along its two axes: P(α_A + a s + b t ≤ ω_A) for s, t uniform on
+    [-1/2, 1/2]. With no change across the cell (steps 0) it is :func:`arrival_gain`, bit for bit."""
+    inside = _cell_share(half_fov - alpha_a, steps[..., 0].abs(), steps[..., 1].abs())
+    gain = peak_arrival_gain(half_fov, concentrator_index) * torch.cos(alpha_a)
+    return torch.where(inside > 0, gain * inside, torch.zeros_like(gain))
+
+
+def _cell_share(margin: torch.Tensor, p: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
+    """P(p s + q t ≤ margin) for s, t uniform on [-1/2, 1/2], p, q ≥ 0: the distribution function of the sum of
+    two uniforms of widths p and q (a trapezoid's), 1 or 0 by the sign of ``margin`` where both vanish."""
+    wide, narrow = torch.maximum(p, q), torch.minimum(p, q)
+    y = margin + (wide + narrow) / 2  # from the sum's lowest value
+    tiny = torch.finfo(margin.dtype).tiny
+    ramp = (y - narrow / 2) / wide.clamp(min=tiny)
+    corner = 2 * wide * narrow
+    rising = y**2 / corner.clamp(min=tiny)
+    falling = 1 - (wide + narrow - y) ** 2 / corner.clamp(min=tiny)
+    share = torch.where(y < narrow, rising, torch.where(y <= wide, ramp, falling))
+    share = torch.where(y <= 0, torch.zeros_like(share), torch.where(y >= wide + narrow, torch.ones_like(share), share))
+    return torch.where(wide > 0, share, (margin >= 0).to(margin.dtype))
+
+
 def peak_arrival_gain(half_fov: float, concentrator_index: float = 1.0) -> float:
     """G_A at α_A = 0: n_c² / sin² ω_A (docs/model.md §4, paper eq. (5)); ω_A in rad."""
     return concentrator_index**2 / math.sin(half_fov) ** 2

@@ -150,7 +150,11 @@ class TwoScale(ChannelModel):
 
 def _scaled(light: LightSamples, factor: torch.Tensor) -> LightSamples:
     return LightSamples(
-        weight=light.weight * factor, departure=light.departure, arrival=light.arrival, batch_size=light.batch_size
+        weight=light.weight * factor,
+        departure=light.departure,
+        arrival=light.arrival,
+        cell=light.cell,
+        batch_size=light.batch_size,
     )
 
 
@@ -261,7 +265,23 @@ def two_scale_light(
     upward = (w[..., 2] > 1e-6) & (u2[..., 2] > 0)
     weight = area * transmitted * intercepted / r1**2 * density * to_receiver
     weight = torch.where(upward & torch.isfinite(weight), weight, torch.zeros_like(weight))
-    return LightSamples(weight=weight, departure=u1, arrival=u2, batch_size=[batch, nodes * nodes])
+    cell = across_cells(u2, nodes)
+    return LightSamples(weight=weight, departure=u1, arrival=u2, cell=cell, batch_size=[batch, nodes * nodes])
+
+
+def across_cells(values: torch.Tensor, nodes: int) -> torch.Tensor:
+    """The change of ``values`` ``[B, nodes², 3]`` (a lattice's nodes, row-major) across each node's cell along
+    the lattice's two axes, ``[B, nodes², 2, 3]``: central differences between neighbours, one-sided at the
+    lattice's edge."""
+    grid = values.unflatten(1, (nodes, nodes))
+
+    def along(axis: int) -> torch.Tensor:
+        first, second = grid.narrow(axis, 1, 1) - grid.narrow(axis, 0, 1), grid.narrow(axis, 2, nodes - 2)
+        inner = (second - grid.narrow(axis, 0, nodes - 2)) / 2
+        last = grid.narrow(axis, nodes - 1, 1) - grid.narrow(axis, nodes - 2, 1)
+        return torch.cat((first, inner, last), dim=axis)
+
+    return torch.stack((along(1), along(2)), dim=-2).flatten(1, 2)
 
 
 def _matrix(covariance: torch.Tensor) -> torch.Tensor:

@@ -23,7 +23,13 @@ import torch
 from tensordict import TensorClass
 
 from waterair.physics.channel.geometry import Transceiver
-from waterair.physics.optics import angle_between, arrival_gain, departure_gain, peak_arrival_gain
+from waterair.physics.optics import (
+    angle_between,
+    arrival_gain,
+    arrival_gain_over_cell,
+    departure_gain,
+    peak_arrival_gain,
+)
 
 UPPER_BOUND_ITERATIONS = 4
 """Alternating ascent steps of :func:`upper_bound` from each of its two starts."""
@@ -33,12 +39,16 @@ class LightSamples(TensorClass):
     """The light reaching each link's receiver as N weighted rays (leading shape ``[B, N]``).
 
     ``weight`` W (1/m², ≥ 0; padding samples have 0), ``departure`` u1 and ``arrival`` u2 (unit,
-    ``[B, N, 3]``: from T toward the surface, from the surface toward R).
+    ``[B, N, 3]``: from T toward the surface, from the surface toward R). ``cell``: where the samples are the
+    nodes of a lattice, the change of each one's arrival direction across its cell along the lattice's two axes
+    ``[B, N, 2, 3]``, over which the receiver's field of view is averaged (docs/model.md §4.3); None where each
+    sample is a ray.
     """
 
     weight: torch.Tensor
     departure: torch.Tensor
     arrival: torch.Tensor
+    cell: torch.Tensor | None = None
 
 
 class Reception(NamedTuple):
@@ -119,10 +129,22 @@ def receive(
 def pointed_gains(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
     """Each sample's share ``[B, N]`` of eq. (4.7) (1/m²) for pointings tx_dir (up), rx_dir (down) ``[B, 3]``."""
     alpha_d = angle_between(tx_dir.unsqueeze(1), light.departure)
-    alpha_a = angle_between(rx_dir.unsqueeze(1), -light.arrival)
     g_d = departure_gain(alpha_d, optics.divergence, optics.wavelength)
-    g_a = arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index)
-    return light.weight * g_d * g_a
+    return light.weight * g_d * arrival_gains(light, rx_dir, optics)
+
+
+def arrival_gains(light: LightSamples, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
+    """Each sample's G_A ``[B, N]`` for the receiver boresight ``rx_dir`` ``[B, 3]``: a ray's, or averaged over a
+    lattice node's cell where ``light.cell`` is given (docs/model.md §4.3, "The field of view's edge")."""
+    boresight = rx_dir.unsqueeze(1)
+    alpha_a = angle_between(boresight, -light.arrival)
+    if light.cell is None:
+        return arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index)
+    # dα_A = (boresight · du2) / sin α_A across the cell, no more than |du2| (the angle between unit vectors)
+    change = (boresight.unsqueeze(-2) * light.cell).sum(-1)
+    largest = torch.linalg.vector_norm(light.cell, dim=-1)
+    steps = (change / torch.sin(alpha_a).unsqueeze(-1).clamp(min=1e-12)).clamp(-largest, largest)
+    return arrival_gain_over_cell(alpha_a, steps, optics.half_fov, optics.concentrator_index)
 
 
 def received_gain(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
@@ -162,6 +184,7 @@ def sliced(light: LightSamples, rows: slice = slice(None), samples: slice = slic
         weight=weight,
         departure=light.departure[rows, samples],
         arrival=light.arrival[rows, samples],
+        cell=None if light.cell is None else light.cell[rows, samples],
         batch_size=weight.shape,
     )
 
@@ -173,6 +196,7 @@ def repeated(light: LightSamples, copies: int) -> LightSamples:
         weight=weight,
         departure=light.departure.repeat(copies, 1, 1),
         arrival=light.arrival.repeat(copies, 1, 1),
+        cell=None if light.cell is None else light.cell.repeat(copies, 1, 1, 1),
         batch_size=weight.shape,
     )
 
@@ -201,8 +225,7 @@ def _ascend(light: LightSamples, tx: torch.Tensor, rx: torch.Tensor, optics: Tra
     for _ in range(iterations):
         alpha_d = angle_between(tx.unsqueeze(1), light.departure)
         g_d = departure_gain(alpha_d, optics.divergence, optics.wavelength)
-        g_a = arrival_gain(angle_between(rx.unsqueeze(1), -light.arrival), optics.half_fov, optics.concentrator_index)
-        share = light.weight * g_d * g_a
+        share = light.weight * g_d * arrival_gains(light, rx, optics)
         tx = weighted_direction(share * torch.cos(alpha_d), light.departure, tx)
         g_d = departure_gain(angle_between(tx.unsqueeze(1), light.departure), optics.divergence, optics.wavelength)
         rx = weighted_direction(light.weight * g_d, -light.arrival, rx)
