@@ -18,7 +18,7 @@ from waterair.envs.frames import FrameStack
 from waterair.envs.kernel import MEASUREMENT_KEYS, SURFACE_KEYS
 from waterair.envs.noise import stream_keys
 from waterair.envs.rewards import Reward
-from waterair.envs.sensors import Sensor
+from waterair.envs.sensors import Sensor, SensorSettings
 from waterair.envs.stepper import Stepper
 from waterair.physics.channel import LinkEnds, pointing
 from waterair.physics.paths import flat_sea_point, solve_path
@@ -101,7 +101,7 @@ class WaterAirEnv(EnvBase):
         self._channel_generator = torch.Generator()
         self._set_seed(config.seed)
         self.sensor = Sensor(
-            **config.sensing,
+            SensorSettings(**config.sensing),
             half_fov=self.optics.half_fov,
             generator=self._sensor_generator,
             beacon_half_fov=config.beacon.half_fov,
