@@ -163,6 +163,6 @@ def test_four_newton_steps_put_every_ray_on_a_rough_surface():
     direction, _ = departures(axis, e1, e2, tangent, 0.1)
     point, _, distance = surface_hits(surface.harmonics, tx, direction, 10.0, FEWEST_ITERATIONS)
     time = torch.full((4,), 10.0, dtype=F64)
-    height = harmonic_sums(*surface.harmonics, point[..., 0], point[..., 1], time, 0)[0]
+    height = harmonic_sums(surface.harmonics, point[..., 0], point[..., 1], time, 0)[0]
     assert (point[..., 2] - height).abs().max() < 1e-10
     assert torch.allclose(point, tx[:, None] + distance[..., None] * direction, atol=1e-12)

@@ -355,8 +355,7 @@ class WaterAirEnv(EnvBase):
             zero,
             config.solver,
             init=flat[:, :2],
-            n_water=self.optics.n_water,
-            n_air=self.optics.n_air,
+            indices=self.optics.indices,
             compiled=self.config.compile_kernel,
         )
         upright = torch.zeros(rows.numel(), 2, device=self.device, dtype=dtype)

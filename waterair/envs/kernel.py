@@ -35,7 +35,7 @@ from waterair.envs.sensors import (
 )
 from waterair.physics.channel import LightSamples, LinkEnds, pointing, read_beacon
 from waterair.physics.optics import per_link, unit_vector
-from waterair.physics.paths import PathSolution, finish_path, near_calm_point
+from waterair.physics.paths import FixedNewtonOptions, Iterate, PathSolution, finish_path, near_calm_point
 from waterair.physics.paths.fixed import fixed_newton_terms
 from waterair.physics.surface import Harmonics
 
@@ -75,17 +75,6 @@ def state_shapes(
         "packets": ((latency_steps + 1, sum(packet_sizes(history_length))), None),
         **{key: (tuple(value.shape[1:]), None) for key, value in prepared.items()},
     }
-
-
-class Solve(NamedTuple):
-    """A path solve's result per link: P ``[B, 3]``, slopes ``[B, 2]``, the final (x, y) ``[B, 2]``
-    (where more iterations would start), converged ``[B]`` and iterations taken ``[B]``."""
-
-    point: torch.Tensor
-    slope: torch.Tensor
-    xy: torch.Tensor
-    converged: torch.Tensor
-    iterations: torch.Tensor
 
 
 class Record(NamedTuple):
@@ -160,22 +149,21 @@ def predicted_point(state: dict) -> torch.Tensor:
     return 2.0 * state["point"][:, :2] - state["previous_point"][:, :2]
 
 
-def solve(c: StepConstants, state: dict, time: torch.Tensor, start=None, iterations: int | None = None) -> Solve:
-    """Masked Newton iterations (``c.solver.iterations`` by default) from ``start`` (default: the predicted point)."""
-    terms = fixed_newton_terms(
-        *(state[key] for key in SURFACE_KEYS),
+def solve(
+    c: StepConstants, state: dict, time: torch.Tensor, start=None, options: FixedNewtonOptions | None = None
+) -> Iterate:
+    """Masked Newton iterations (``options``, by default ``c.solver``) from ``start`` (default: the predicted
+    point)."""
+    return fixed_newton_terms(
+        Harmonics(*(state[key] for key in SURFACE_KEYS)),
         predicted_point(state) if start is None else start,
         time,
         state["tx_position"],
         state["rx_position"],
         c.optics.n_water,
         c.optics.n_air,
-        c.solver.iterations if iterations is None else iterations,
-        c.tolerance,
-        c.solver.armijo,
-        c.solver.max_step,
+        c.solver if options is None else options,
     )
-    return Solve(*terms)
 
 
 def channel_light(
@@ -260,7 +248,7 @@ def unpack(packet: torch.Tensor) -> dict[str, torch.Tensor]:
     return dict(zip(PACKET_PARTS, packet.split(packet_sizes(history_length), dim=-1), strict=True))
 
 
-def conclude(c: StepConstants, state: dict, moved: dict, solution: Solve, noise, light: LightSamples | None = None):
+def conclude(c: StepConstants, state: dict, moved: dict, solution: Iterate, noise, light: LightSamples | None = None):
     """The new state and the step's outputs, given the gimbals ``moved`` and the path ``solution``. The
     channel's light is computed here unless it comes as ``light`` (a model that does not compile)."""
     c = c.for_links(state["divergence"])
@@ -295,7 +283,7 @@ def conclude(c: StepConstants, state: dict, moved: dict, solution: Solve, noise,
 
 
 def step(c: StepConstants, state: dict, action: torch.Tensor, noise: torch.Tensor | None):
-    """One step of every link: (new state entries, outputs, the gimbals ``moved``, the :class:`Solve`).
+    """One step of every link: (new state entries, outputs, the gimbals ``moved``, the path solve's :class:`Iterate`).
 
     The solve is returned for finishing the links that have not converged
     (:func:`waterair.physics.paths.fixed.finish_unconverged`) and concluding again. ``noise`` is the
@@ -307,13 +295,14 @@ def step(c: StepConstants, state: dict, action: torch.Tensor, noise: torch.Tenso
     return new, outputs, moved, solution
 
 
-def finish(c: StepConstants, state: dict, moved: dict, solution: Solve, noise, iterations: int):
-    """:func:`step`'s solve continued for ``iterations`` more masked iterations on every link, then concluded.
+def finish(c: StepConstants, state: dict, moved: dict, solution: Iterate, noise, options: FixedNewtonOptions):
+    """:func:`step`'s solve continued for ``options.iterations`` more masked iterations on every link, then
+    concluded.
 
     For small batches, where a dense pass costs less than gathering the unconverged links; links
-    that had converged take no step. Returns (new state entries, outputs, the :class:`Solve`).
+    that had converged take no step. Returns (new state entries, outputs, the :class:`Iterate`).
     """
-    more = solve(c, state, moved["time"], solution.xy, iterations)
+    more = solve(c, state, moved["time"], solution.xy, options)
     solution = more._replace(iterations=solution.iterations + more.iterations)
     new, outputs = conclude(c, state, moved, solution, noise)
     return new, outputs, solution

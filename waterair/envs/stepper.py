@@ -20,9 +20,8 @@ from tensordict import TensorDict, is_tensorclass
 
 from waterair.envs import kernel
 from waterair.envs.constants import StepConstants
-from waterair.envs.kernel import Solve
 from waterair.physics.channel import ChannelModel, LightSamples, LinkEnds
-from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path, solve_path
+from waterair.physics.paths import FixedNewtonOptions, Iterate, PathProblem, PathSolution, finish_path, solve_path
 from waterair.physics.paths.fixed import finish_unconverged
 from waterair.physics.surface import WaveSurface
 
@@ -97,6 +96,12 @@ class Stepper:
         self._step, self._finish, self._conclude = pick("step"), pick("finish"), pick("conclude")
         # what the compiled functions get: the numbers that vary between environments as tensors (one graph)
         self.traced = constants.traced(torch.device(device)) if compile_kernel else constants
+        self.finishing = FixedNewtonOptions(
+            iterations=FINISH_ITERATIONS,
+            tol=constants.tolerance,
+            armijo=constants.solver.armijo,
+            max_step=constants.solver.max_step,
+        )
 
     def __call__(self, surface: WaveSurface, state: dict, action: torch.Tensor, noise):
         """(new state entries, outputs) of one step; ``state`` includes the surface's components."""
@@ -118,12 +123,11 @@ class Stepper:
                 moved["time"],
                 "centroid",
                 init=state["point"][:, :2],
-                n_water=c.optics.n_water,
-                n_air=c.optics.n_air,
+                indices=c.optics.indices,
                 compiled=self.compile_kernel,
             )
             slope = -path.normal[:, :2] / path.normal[:, 2:]
-            solution = Solve(path.point, slope, path.point[:, :2], path.valid, path.iterations)
+            solution = Iterate(path.point, slope, path.point[:, :2], path.valid, path.iterations)
             return self._conclude(self.traced, state, moved, solution, noise)
         new, outputs, moved, solution = self._step(self.traced, state, action, noise)
         if not c.channel.needs_exact_point or bool(solution.converged.all()):  # the step's one host synchronisation
@@ -143,7 +147,7 @@ class Stepper:
         constants; the channel with their divergences, :meth:`StepConstants.for_links`), eagerly."""
         return channel.light(surface.harmonics, path, ends, time, prepared, self.generator)
 
-    def _finish_paths(self, surface: WaveSurface, state: dict, moved: dict, solution: tuple, noise):
+    def _finish_paths(self, surface: WaveSurface, state: dict, moved: dict, solution: Iterate, noise):
         """Finish the links whose fixed-iteration solve has not converged, then conclude the step again.
 
         A few per cent of links at 12 m/s, where the path point moves fast (near a caustic) or jumps
@@ -154,31 +158,15 @@ class Stepper:
         """
         c = self.constants
         if self.compile_kernel and state["time"].shape[0] <= DENSE_FINISH_BATCH:
-            new, outputs, solution = self._finish(self.traced, state, moved, solution, noise, FINISH_ITERATIONS)
+            new, outputs, solution = self._finish(self.traced, state, moved, solution, noise, self.finishing)
             if bool(solution.converged.all()):
                 return new, outputs
-        options = FixedNewtonOptions(
-            iterations=FINISH_ITERATIONS, tol=c.tolerance, armijo=c.solver.armijo, max_step=c.solver.max_step
-        )
-        point, slope, converged, taken = finish_unconverged(
-            solution.point,
-            solution.slope,
-            solution.xy,
-            solution.converged,
-            solution.iterations,
-            surface,
-            state["tx_position"],
-            state["rx_position"],
-            moved["time"],
-            c.optics.n_water,
-            c.optics.n_air,
-            options,
-            self.compile_kernel,
-        )
-        return self._conclude(self.traced, state, moved, Solve(point, slope, solution.xy, converged, taken), noise)
+        problem = PathProblem(surface, state["tx_position"], state["rx_position"], moved["time"], c.optics.indices)
+        solution = finish_unconverged(problem, solution, self.finishing, self.compile_kernel)
+        return self._conclude(self.traced, state, moved, solution, noise)
 
 
-def _path(solution: Solve, state: dict, n_w: float, n_a: float) -> PathSolution:
+def _path(solution: Iterate, state: dict, n_w: float, n_a: float) -> PathSolution:
     """The path through a solve's point, between the state's ends."""
     tx, rx = state["tx_position"], state["rx_position"]
     return finish_path(solution.point, solution.slope, tx, rx, solution.converged, solution.iterations, n_w, n_a)
