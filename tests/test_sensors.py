@@ -15,6 +15,7 @@ from waterair.envs.controllers import AoATracker, IntensityDither
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.noise import stream_keys
 from waterair.envs.sensors import PACKET_PARTS, Sensor, SensorSettings, intensity_feature, intensity_from_feature
+from waterair.envs.state import Packet, Readings
 
 SMALL = {"seed": 3, **paper_physics(n_freq=16, n_dir=8)}  # calibrated on the paper's sea and channel
 QUADRANT = ("spot", "spot_valid", "history", "action_history", "geometry")
@@ -66,6 +67,10 @@ def test_below_the_gating_threshold_the_spot_reads_nothing_and_the_tracker_falls
     assert (env.observation_part(observation, "spot_valid") == 0).all()
     tracker, flat = AoATracker(env)(td.clone())["action"], FlatSeaSnell(env)(td.clone())["action"]
     torch.testing.assert_close(tracker, flat)
+
+
+def test_a_packet_travels_in_the_order_of_its_parts():
+    assert Packet._fields == PACKET_PARTS and Readings._fields + ("history",) == PACKET_PARTS
 
 
 def test_the_sensor_settings_are_the_sensing_keys():

@@ -20,6 +20,7 @@ from tensordict import TensorDict, is_tensorclass
 
 from waterair.envs import kernel
 from waterair.envs.constants import StepConstants
+from waterair.envs.state import StepResult, StepState
 from waterair.physics.channel import ChannelModel, LightSamples, LinkEnds
 from waterair.physics.paths import FixedNewtonOptions, Iterate, PathProblem, PathSolution, finish_path, solve_path
 from waterair.physics.paths.fixed import finish_unconverged
@@ -103,13 +104,13 @@ class Stepper:
             max_step=constants.solver.max_step,
         )
 
-    def __call__(self, surface: WaveSurface, state: dict, action: torch.Tensor, noise):
-        """(new state entries, outputs) of one step; ``state`` includes the surface's components."""
+    def __call__(self, surface: WaveSurface, state: StepState, action: torch.Tensor, noise) -> StepResult:
+        """One step of the links of ``state`` (whose seas are ``surface``'s)."""
         c = self.constants
         if not c.channel.compiles:
-            c = c.for_links(state["divergence"])
+            c = c.for_links(state.divergence)
             moved = kernel.advance(c, state, action)
-            solution = kernel.solve(c, state, moved["time"])
+            solution = kernel.solve(c, state, moved.time)
             n_w, n_a = c.optics.n_water, c.optics.n_air
             path = _path(solution, state, n_w, n_a)
             light = kernel.channel_light(c, state, path, moved, self.generator)
@@ -118,21 +119,21 @@ class Stepper:
             moved = kernel.advance(c, state, action)
             path = solve_path(
                 surface,
-                state["tx_position"],
-                state["rx_position"],
-                moved["time"],
+                state.tx_position,
+                state.rx_position,
+                moved.time,
                 "centroid",
-                init=state["point"][:, :2],
+                init=state.point[:, :2],
                 indices=c.optics.indices,
                 compiled=self.compile_kernel,
             )
             slope = -path.normal[:, :2] / path.normal[:, 2:]
             solution = Iterate(path.point, slope, path.point[:, :2], path.valid, path.iterations)
             return self._conclude(self.traced, state, moved, solution, noise)
-        new, outputs, moved, solution = self._step(self.traced, state, action, noise)
-        if not c.channel.needs_exact_point or bool(solution.converged.all()):  # the step's one host synchronisation
-            return new, outputs
-        return self._finish_paths(surface, state, moved, solution, noise)
+        result = self._step(self.traced, state, action, noise)
+        if not c.channel.needs_exact_point or bool(result.solution.converged.all()):  # the step's one host sync
+            return result
+        return self._finish_paths(surface, state, result, noise)
 
     def reset_light(
         self,
@@ -147,8 +148,9 @@ class Stepper:
         constants; the channel with their divergences, :meth:`StepConstants.for_links`), eagerly."""
         return channel.light(surface.harmonics, path, ends, time, prepared, self.generator)
 
-    def _finish_paths(self, surface: WaveSurface, state: dict, moved: dict, solution: Iterate, noise):
-        """Finish the links whose fixed-iteration solve has not converged, then conclude the step again.
+    def _finish_paths(self, surface: WaveSurface, state: StepState, result: StepResult, noise) -> StepResult:
+        """Finish the links whose fixed-iteration solve of the step ``result`` has not converged, then conclude the
+        step again.
 
         A few per cent of links at 12 m/s, where the path point moves fast (near a caustic) or jumps
         between branches. They take :data:`FINISH_ITERATIONS` more masked iterations: compiled and
@@ -156,17 +158,17 @@ class Stepper:
         (the same iterations, so the same result). The very few still left finish with the
         adaptive solver.
         """
-        c = self.constants
-        if self.compile_kernel and state["time"].shape[0] <= DENSE_FINISH_BATCH:
-            new, outputs, solution = self._finish(self.traced, state, moved, solution, noise, self.finishing)
-            if bool(solution.converged.all()):
-                return new, outputs
-        problem = PathProblem(surface, state["tx_position"], state["rx_position"], moved["time"], c.optics.indices)
-        solution = finish_unconverged(problem, solution, self.finishing, self.compile_kernel)
+        c, moved = self.constants, result.moved
+        if self.compile_kernel and state.time.shape[0] <= DENSE_FINISH_BATCH:
+            result = self._finish(self.traced, state, moved, result.solution, noise, self.finishing)
+            if bool(result.solution.converged.all()):
+                return result
+        problem = PathProblem(surface, state.tx_position, state.rx_position, moved.time, c.optics.indices)
+        solution = finish_unconverged(problem, result.solution, self.finishing, self.compile_kernel)
         return self._conclude(self.traced, state, moved, solution, noise)
 
 
-def _path(solution: Iterate, state: dict, n_w: float, n_a: float) -> PathSolution:
+def _path(solution: Iterate, state: StepState, n_w: float, n_a: float) -> PathSolution:
     """The path through a solve's point, between the state's ends."""
-    tx, rx = state["tx_position"], state["rx_position"]
+    tx, rx = state.tx_position, state.rx_position
     return finish_path(solution.point, solution.slope, tx, rx, solution.converged, solution.iterations, n_w, n_a)
