@@ -201,7 +201,8 @@ def read_beacon_packet(c: StepConstants, light: LightSamples, tx_dir, rx_dir, re
 
 
 def pack(readings: Readings, history: torch.Tensor) -> torch.Tensor:
-    """One packet ``[n, width]``: the ``readings`` and the ``history`` side by side (:data:`PACKET_PARTS`)."""
+    """One packet ``[n, width]``: the ``readings`` and the ``history`` side by side, the parts of
+    :data:`~waterair.envs.sensors.PACKET_PARTS`."""
     return torch.cat([*readings, history], dim=-1)
 
 
