@@ -15,6 +15,7 @@ from waterair.physics.channel.local_estimate import (
     facet_share,
     local_estimate,
 )
+from waterair.physics.channel.montecarlo import RayRequest
 from waterair.physics.channel.rays import FEWEST_ITERATIONS, departures, surface_hits
 from waterair.physics.optics import N_AIR, N_WATER, refract, transverse_frame, unit_vector
 from waterair.physics.paths import flat_sea_point
@@ -109,12 +110,14 @@ def test_on_a_calm_sea_with_vanishing_facets_it_is_the_closed_form(depth, height
         rx,
         0.0,
         optics,
-        axis=unit_vector(point - tx),
-        reference=unit_vector(rx - point),
-        width=spread,
-        rays=500_000,
-        points=1,
-        generator=torch.Generator().manual_seed(1),
+        RayRequest(
+            axis=unit_vector(point - tx),
+            reference=unit_vector(rx - point),
+            width=spread,
+            rays=500_000,
+            per_ray=1,
+            generator=torch.Generator().manual_seed(1),
+        ),
     )
     irradiance = result.light.weight.sum(1)
     per_ray = result.light.weight * result.rays[:, None]
@@ -160,6 +163,6 @@ def test_four_newton_steps_put_every_ray_on_a_rough_surface():
     direction, _ = departures(axis, e1, e2, tangent, 0.1)
     point, _, distance = surface_hits(surface.harmonics, tx, direction, 10.0, FEWEST_ITERATIONS)
     time = torch.full((4,), 10.0, dtype=F64)
-    height = harmonic_sums(*surface.harmonics, point[..., 0], point[..., 1], time, 0)[0]
+    height = harmonic_sums(surface.harmonics, point[..., 0], point[..., 1], time, 0)[0]
     assert (point[..., 2] - height).abs().max() < 1e-10
     assert torch.allclose(point, tx[:, None] + distance[..., None] * direction, atol=1e-12)

@@ -33,7 +33,7 @@ OPTICS = Transceiver()
 
 def hessian_at(surface: WaveSurface, point, t, tx, rx):
     time = torch.full((tx.shape[0],), float(t), dtype=F64)
-    return fermat_terms(*surface.harmonics, point[:, :2], time, tx, rx, OPTICS.n_water, OPTICS.n_air)[2]
+    return fermat_terms(surface.harmonics, point[:, :2], time, tx, rx, OPTICS.n_water, OPTICS.n_air).hess
 
 
 def landing(surface: WaveSurface, tx, direction, t, rx, plane):
@@ -132,7 +132,7 @@ def test_ray_tube_agrees_with_the_monte_carlo_reference_link_by_link():
     path = solve_path(surface, tx, rx, 2.0)
     time = torch.full((4,), 2.0, dtype=F64)
     hessian = hessian_at(surface, path.point, 2.0, tx, rx)
-    third = directional_third_derivatives(*surface.harmonics, path.point[:, :2], time, hessian_eigenvectors(hessian))
+    third = directional_third_derivatives(surface.harmonics, path.point[:, :2], time, hessian_eigenvectors(hessian))
     slope = -path.normal[:, :2] / path.normal[:, 2:]
     fast = ray_tube_factor(path.point, slope, hessian, tx, rx, OPTICS, third)
     # the model's own light is that factor, one sample a link

@@ -210,8 +210,8 @@ def test_fixed_iteration_solver_without_finishing_flags_unconverged_links_invali
     tx, rx = default_positions
     surface = WaveSurface.sample(sea_state("jonswap", wind=12.0), 64, seed=7, dtype=torch.float64)
     options = FixedNewtonOptions(iterations=1, finish=False)
-    path = solve_path(surface, tx, rx, 0.0, method="newton_fixed", options=options)
-    finished = solve_path(surface, tx, rx, 0.0, method="newton_fixed", options=FixedNewtonOptions(iterations=1))
+    path = solve_path(surface, tx, rx, 0.0, method=options)
+    finished = solve_path(surface, tx, rx, 0.0, method=FixedNewtonOptions(iterations=1))
     assert (~path.valid).any() and finished.valid.float().mean() > (path.valid.float().mean())
     assert path.iterations.max().item() == 1 and finished.iterations.max().item() > 1
     for value in (path.point, path.departure, path.theta1, path.d_air):

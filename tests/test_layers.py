@@ -29,6 +29,9 @@ BENEATH = {"waterair.training.algorithms": "waterair.training"}
 """Sub-packages below the rest of their layer: they import nothing of it outside themselves."""
 MAX_LINES = 420
 """About 400 lines: a longer module is asking to be split."""
+MAX_PARAMETERS = 8
+"""The most parameters a function of the physics or the envs takes (``self``/``cls`` not counted): past it, what
+belongs together (a sea's harmonics, a solver's options, a sensor's settings) is passed whole."""
 
 
 def module_name(path: Path, root: Path = ROOT) -> str:
@@ -200,6 +203,41 @@ def test_the_physics_api_imports_no_rl_or_plotting_stack(module):
 def test_no_module_is_much_over_400_lines():
     long = {str(p.relative_to(ROOT)): n for p in SOURCES if (n := len(p.read_text().splitlines())) > MAX_LINES}
     assert long == {}
+
+
+def long_signatures(files: list[Path], root: Path = ROOT) -> dict[str, int]:
+    """Functions of ``files`` with more than :data:`MAX_PARAMETERS` parameters (positional, keyword-only,
+    ``*args``, ``**kwargs``; a method's ``self`` or ``cls`` not counted), as ``path:line name`` → count."""
+    found = {}
+    for path in files:
+        tree = ast.parse(path.read_text())
+        methods = {id(f) for c in ast.walk(tree) if isinstance(c, ast.ClassDef) for f in c.body}
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            arguments = node.args
+            names = [a.arg for a in (*arguments.posonlyargs, *arguments.args)]
+            count = len(names) + len(arguments.kwonlyargs) + bool(arguments.vararg) + bool(arguments.kwarg)
+            static = any(isinstance(d, ast.Name) and d.id == "staticmethod" for d in node.decorator_list)
+            if id(node) in methods and not static and names[:1] in (["self"], ["cls"]):
+                count -= 1
+            if count > MAX_PARAMETERS:
+                found[f"{path.relative_to(root)}:{node.lineno} {node.name}"] = count
+    return found
+
+
+def test_no_physics_or_env_function_takes_more_than_eight_parameters():
+    files = [p for p in SOURCES if p.is_relative_to(PACKAGE / "physics") or p.is_relative_to(PACKAGE / "envs")]
+    assert long_signatures(files) == {}
+
+
+def test_a_long_signature_is_found(tmp_path):
+    module = tmp_path / "wide.py"
+    module.write_text(
+        "class A:\n    def m(self, a, b, c, d, e, f, g, h):\n        pass\n\n"
+        "def f(a, b, c, d, e, f, g, *h, i, **j):\n    pass\n"
+    )
+    assert long_signatures([module], root=tmp_path) == {"wide.py:5 f": 10}
 
 
 def test_the_readme_tour_runs_as_written():

@@ -16,7 +16,8 @@ import torch
 from tests.conftest import compose_config
 from waterair.envs.stepper import FINISH_ITERATIONS
 from waterair.physics.channel import LinkGeometry, Transceiver, calm_sea_gains, channel_gain, pointing
-from waterair.physics.paths import FixedNewtonOptions, finish_path, flat_sea_point, solve_path
+from waterair.physics.optics import RefractiveIndices
+from waterair.physics.paths import FixedNewtonOptions, PathProblem, finish_path, flat_sea_point, solve_path
 from waterair.physics.paths.fixed import finish_unconverged, iterate_fixed
 from waterair.training.builders import make_env
 
@@ -46,13 +47,11 @@ def physics_rollout(surface, actions):
     for action in actions:
         time = time + PAPER["dt"]  # the clock adds a step at a time, as a step does
         guess = 2.0 * point[:, :2] - previous[:, :2]
+        problem = PathProblem(surface, tx, rx, time, RefractiveIndices(n_w, n_a))
         first = FixedNewtonOptions(iterations=PAPER["newton_iterations"])
-        p, slope, xy, done, taken = iterate_fixed(surface, tx, rx, time, guess, n_w, n_a, first, False)
-        rest = FixedNewtonOptions(iterations=FINISH_ITERATIONS)
-        p, slope, done, taken = finish_unconverged(
-            p, slope, xy, done, taken, surface, tx, rx, time, n_w, n_a, rest, False
-        )
-        path = finish_path(p, slope, tx, rx, done, taken, n_w, n_a)
+        stop = iterate_fixed(problem, guess, first, False)
+        stop = finish_unconverged(problem, stop, FixedNewtonOptions(iterations=FINISH_ITERATIONS), False)
+        path = finish_path(stop.point, stop.slope, tx, rx, stop.converged, stop.iterations, n_w, n_a)
         tx_dir = pointing(action[:, :2] * PAPER["max_tilt"], up=True)
         rx_dir = pointing(action[:, 2:] * PAPER["max_tilt"], up=False)
         gain = channel_gain(path, tx_dir, rx_dir, optics)

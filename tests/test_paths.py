@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from waterair.physics.channel import LinkGeometry
-from waterair.physics.paths import CentroidOptions, NewtonOptions, solve_path
+from waterair.physics.paths import CentroidOptions, FixedNewtonOptions, NewtonOptions, solve_path
 from waterair.physics.sea import sea_state
 from waterair.physics.surface import WaveSurface
 
@@ -122,7 +122,7 @@ def test_centroid_on_a_flat_sea_is_exact(default_positions):
 def test_iteration_cap_flags_paths_invalid_never_nan(default_positions):
     tx, rx = default_positions
     surface = WaveSurface.sample(sea_state("jonswap", wind=12.0), 64, seed=7, dtype=torch.float64)
-    path = solve_path(surface, tx, rx, 0.0, options=NewtonOptions(max_iter=1))
+    path = solve_path(surface, tx, rx, 0.0, NewtonOptions(max_iter=1))
     assert (~path.valid).any()
     for value in (path.point, path.departure, path.theta1, path.d_air):
         assert torch.isfinite(value).all()
@@ -143,8 +143,8 @@ def test_no_nan_or_inf_for_any_sea(wind, fetch, offset, seed, method, spectrum):
     sea = sea_state(spectrum, wind=wind, fetch=fetch, n_dir=8, **bins)
     surface = WaveSurface.sample(sea, 16, seed=seed)
     assert torch.isfinite(surface.amplitude).all() and torch.isfinite(surface.unresolved).all()
-    options = CentroidOptions(pixels=5, max_passes=6) if method == "centroid" else None
-    path = solve_path(surface, tx, rx, 12.3, method=method, options=options)
+    options = CentroidOptions(pixels=5, max_passes=6) if method == "centroid" else method
+    path = solve_path(surface, tx, rx, 12.3, method=options)
     for name in ("point", "departure", "arrival", "normal", "theta1", "theta2", "d_water", "d_air"):
         assert torch.isfinite(getattr(path, name)).all(), name
 
@@ -175,7 +175,7 @@ def test_a_compiled_path_kernel_keeps_one_graph_for_every_working_set(kernel, mo
 
     counter = CompileCounter()
     function = newton.fermat_terms if kernel == "fermat" else fixed.fixed_newton_terms
-    settings = (N_W, N_A) if kernel == "fermat" else (N_W, N_A, 2, 1e-10, 1e-4, 2.0)
+    settings = (N_W, N_A) if kernel == "fermat" else (N_W, N_A, FixedNewtonOptions(iterations=2, tol=1e-10))
     traced = torch.compile(function, dynamic=True, backend=counter)
     torch._dynamo.reset()
     surface = WaveSurface.sample(sea_state("jonswap", wind=12.0, n_freq=16, n_dir=8), 8, seed=2, dtype=torch.float64)
@@ -183,10 +183,11 @@ def test_a_compiled_path_kernel_keeps_one_graph_for_every_working_set(kernel, mo
     starts = torch.randn(8, 3, generator=torch.Generator().manual_seed(0), dtype=torch.float64)  # (x, y) a view
     for rows in (8, 5, 3, 2, 1):
         xy = starts[:rows, :2] if rows % 2 else starts[:rows, :2].clone()
-        inputs = (*(getattr(surface, k)[:rows] for k in ("omega", "phase", "kx", "ky", "amplitude")), xy)
-        inputs = (*inputs, torch.full((rows,), 1.5, dtype=torch.float64), tx[:rows], rx[:rows])
-        got = newton.call_compiled(traced, inputs, *settings)
-        for value, want in zip(got, function(*inputs, *settings), strict=True):
+        sea = surface[:rows].harmonics
+        inputs = (xy, torch.full((rows,), 1.5, dtype=torch.float64), tx[:rows], rx[:rows])
+        got = newton.call_compiled(traced, sea, inputs, *settings)
+        assert type(got) is type(function(sea, *inputs, *settings))  # the kernel's named result
+        for value, want in zip(got, function(sea, *inputs, *settings), strict=True):
             assert value.shape == want.shape
             torch.testing.assert_close(value, want, rtol=1e-12, atol=1e-12)
     assert counter.frame_count == 1

@@ -78,7 +78,7 @@ def test_while_only_the_parked_reading_has_arrived_the_ends_take_the_base_pointi
     env = WaterAirEnv(EnvConfig(action_mode="residual", residual_base="aoa_tracker", **SMALL, **sensing))
     td = env.reset()
     assert td["observation"][:, env.config.observation_layout["spot_valid"]].any()  # readings the parking ignores
-    flat = flat_tilts(env.state["flat_point"], env.tx_position, env.rx_position)
+    flat = flat_tilts(env.state.flat_point, env.tx_position, env.rx_position)
     tilts = []
     generator = torch.Generator().manual_seed(0)
     for _ in range(latency + 2):

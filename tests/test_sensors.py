@@ -1,5 +1,6 @@
 """Sensing (docs/environment.md): latency, noise, gating, presets, and the classical controllers."""
 
+import dataclasses
 import math
 
 import pytest
@@ -9,11 +10,12 @@ from omegaconf import OmegaConf
 from torchrl.envs.utils import check_env_specs
 
 from waterair.envs.baselines import FlatSeaSnell
-from waterair.envs.config import EnvConfig
+from waterair.envs.config import SENSOR_KEYS, EnvConfig
 from waterair.envs.controllers import AoATracker, IntensityDither
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.noise import stream_keys
-from waterair.envs.sensors import PACKET_PARTS, Sensor, intensity_feature, intensity_from_feature
+from waterair.envs.sensors import PACKET_PARTS, Sensor, SensorSettings, intensity_feature, intensity_from_feature
+from waterair.envs.state import Packet, Readings
 
 SMALL = {"seed": 3, **paper_physics(n_freq=16, n_dir=8)}  # calibrated on the paper's sea and channel
 QUADRANT = ("spot", "spot_valid", "history", "action_history", "geometry")
@@ -67,15 +69,25 @@ def test_below_the_gating_threshold_the_spot_reads_nothing_and_the_tracker_falls
     torch.testing.assert_close(tracker, flat)
 
 
+def test_a_packet_travels_in_the_order_of_its_parts():
+    assert Packet._fields == PACKET_PARTS and Readings._fields + ("history",) == PACKET_PARTS
+
+
+def test_the_sensor_settings_are_the_sensing_keys():
+    assert tuple(field.name for field in dataclasses.fields(SensorSettings)) == SENSOR_KEYS
+    assert SensorSettings() == SensorSettings(**EnvConfig().sensing)  # the defaults: the ideal sensor
+
+
 def test_noise_spread_matches_the_configuration():
     count = 100_000
-    sensor = Sensor(0, 0.05, 0.002, None, 0.001, 0.0, 0.17, torch.Generator().manual_seed(0))
+    settings = SensorSettings(intensity_noise=0.05, intensity_noise_floor=0.002, spot_noise_rad=0.001)
+    sensor = Sensor(settings, 0.17, torch.Generator().manual_seed(0))
     ones = torch.ones(count, dtype=torch.float64)
     keys = stream_keys(count, 1)
     noise = sensor.draw(keys, torch.float64, torch.device("cpu"))
     relative = sensor.intensity(ones, noise) - 1.0  # relative 0.05 and floor 0.002 add in quadrature at I = 1
     assert relative.std().item() == pytest.approx(math.hypot(0.05, 0.002), rel=0.05)
-    floor_only = Sensor(0, 0.0, 0.002, None, 0.0, 0.0, 0.17, torch.Generator().manual_seed(1))
+    floor_only = Sensor(SensorSettings(intensity_noise_floor=0.002), 0.17, torch.Generator().manual_seed(1))
     floor_noise = floor_only.draw(keys, torch.float64, torch.device("cpu"))
     assert (floor_only.intensity(10 * ones, floor_noise) - 10).std().item() == pytest.approx(0.002, rel=0.05)
     lit = torch.ones(count, dtype=torch.bool)
@@ -83,7 +95,7 @@ def test_noise_spread_matches_the_configuration():
     assert valid.all()
     expected = 0.001 / math.tan(0.17)  # 1 mrad of angle, in spot units
     assert reading.std(0).tolist() == pytest.approx([expected, expected], rel=0.05)
-    saturating = Sensor(0, 0.0, 0.0, 4.0, 0.0, 0.0, 0.17, torch.Generator())
+    saturating = Sensor(SensorSettings(intensity_saturation=4.0), 0.17, torch.Generator())
     assert saturating.draw(keys[:2], torch.float32, torch.device("cpu")) is None  # noiseless: draws nothing
     assert saturating.intensity(torch.tensor([1.0, 7.0]), None).tolist() == [1.0, 4.0]
 

@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from waterair.physics.sea import sea_state
-from waterair.physics.surface import WaveSurface, harmonic_sums, lattice_harmonic_sums
+from waterair.physics.surface import Harmonics, WaveSurface, harmonic_sums, lattice_harmonic_sums
 
 
 def surface64(batch=8, seed=0, spectrum="jonswap", **sea):
@@ -57,8 +57,8 @@ def test_eager_sums_over_many_points_match_a_float64_double_sum_in_every_chunk()
     generator = torch.Generator().manual_seed(0)
     x, y = (20 * torch.rand(seas, points, generator=generator) - 10 for _ in range(2))
     t = torch.linspace(0.0, 6.0, seas)
-    height, slope_x, slope_y = harmonic_sums(*surface.harmonics, x, y, t, 1)
-    (first,) = harmonic_sums(*surface.harmonics, x, y, t, 0)
+    height, slope_x, slope_y = harmonic_sums(surface.harmonics, x, y, t, 1)
+    (first,) = harmonic_sums(surface.harmonics, x, y, t, 0)
     torch.testing.assert_close(first, height, rtol=0, atol=0)
     c = [v.double() for v in surface.harmonics]  # omega, phase, kx, ky, amplitude
     psi = c[0][:, None] * t.double()[:, None, None] + c[1][:, None] - c[2][:, None] * x.double()[..., None]
@@ -216,14 +216,15 @@ def test_lattice_sums_equal_the_direct_sums_at_every_node(sea, nodes, seed, orde
     expected = direct_sums(surface.harmonics, xy[..., 0], xy[..., 1], time)[: (1, 3, 6)[order]]
     k = torch.sqrt(surface.kx**2 + surface.ky**2)
     scales = [(surface.amplitude * k**power).sum(-1, keepdim=True) for power in (0, 1, 1, 2, 2, 2)]
-    got = lattice_harmonic_sums(*surface.harmonics, centre, basis, grid, time, order)
+    got = lattice_harmonic_sums(surface.harmonics, centre, basis, grid, time, order)
     assert len(got) == len(expected)
     for value, want, scale in zip(got, expected, scales, strict=False):
         assert value.shape == (batch, nodes * nodes)
         assert ((value - want).abs() / scale).max().item() < 1e-10
-    single = [v.float() for v in (*surface.harmonics, centre, basis, grid, time)]
-    got32 = lattice_harmonic_sums(*single, order)
-    direct32 = harmonic_sums(*single[:5], xy[..., 0].float(), xy[..., 1].float(), single[-1], order)
+    sea32 = Harmonics(*(v.float() for v in surface.harmonics))
+    single = [v.float() for v in (centre, basis, grid, time)]
+    got32 = lattice_harmonic_sums(sea32, *single, order)
+    direct32 = harmonic_sums(sea32, xy[..., 0].float(), xy[..., 1].float(), single[-1], order)
     for value, direct, want, scale in zip(got32, direct32, expected, scales, strict=False):
         error = (value.double() - want).abs() / scale
         assert error.max().item() < 1e-5

@@ -17,7 +17,7 @@ import torch
 from waterair.physics import LinkGeometry, Transceiver, WaveSurface, flat_sea_point, sea_state
 from waterair.physics.channel import ray_tube_factor
 from waterair.physics.optics import arrival_gain, departure_gain, fresnel_transmittance, path_gain, unit_vector
-from waterair.physics.paths.census import refraction_points
+from waterair.physics.paths.census import CensusOptions, refraction_points
 
 REACH_DIVERGENCES = 3.0
 """The beam's reach around its axis, in beam divergences ω_D."""
@@ -46,9 +46,8 @@ def bench_census(
                 tx_dir, rx_dir = unit_vector(flat - tx), unit_vector(flat - rx)
                 counts, spreads, bright, bright_lensed = [], [], [], []
                 for t in times:
-                    found = refraction_points(
-                        surface, tx, rx, t, tx_dir, REACH_DIVERGENCES * optics.divergence, spacing=step
-                    )
+                    reach = REACH_DIVERGENCES * optics.divergence
+                    found = refraction_points(surface, tx, rx, t, tx_dir, reach, options=CensusOptions(spacing=step))
                     gains, lensed = _point_gains(found, tx, rx, tx_dir, rx_dir, optics)
                     counts.append(found.count)
                     spreads.append(_spread(found))

@@ -5,6 +5,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
@@ -15,10 +17,10 @@ from waterair.envs import draws, kernel
 from waterair.envs.config import EnvConfig
 from waterair.envs.constants import StepConstants
 from waterair.envs.frames import FrameStack
-from waterair.envs.kernel import MEASUREMENT_KEYS, SURFACE_KEYS
 from waterair.envs.noise import stream_keys
 from waterair.envs.rewards import Reward
-from waterair.envs.sensors import Sensor
+from waterair.envs.sensors import Sensor, SensorSettings
+from waterair.envs.state import Measurement, StepState, Tilts
 from waterair.envs.stepper import Stepper
 from waterair.physics.channel import LinkEnds, pointing
 from waterair.physics.paths import flat_sea_point, solve_path
@@ -101,7 +103,7 @@ class WaterAirEnv(EnvBase):
         self._channel_generator = torch.Generator()
         self._set_seed(config.seed)
         self.sensor = Sensor(
-            **config.sensing,
+            SensorSettings(**config.sensing),
             half_fov=self.optics.half_fov,
             generator=self._sensor_generator,
             beacon_half_fov=config.beacon.half_fov,
@@ -153,15 +155,15 @@ class WaterAirEnv(EnvBase):
             )
         action = action.to(self.float_dtype).clamp(-1.0, 1.0)
         noise = self.sensor.draw(self._noise_keys, self.float_dtype, self.device)
-        new, outputs = self.stepper(self.surface, self._full_state(), action, noise)
-        self.state.update(new)
-        self.measurement = {key: outputs[key] for key in MEASUREMENT_KEYS}
-        self._base_tilt = outputs["base_tilt"]
-        out = self._output(outputs["observation"])
-        truncated = outputs["truncated"]
+        result = self.stepper(self.surface, self._full_state(), action, noise)
+        self.state, outputs = result.state, result.outputs
+        self.measurement = outputs.measurement
+        self._base_tilt = outputs.base_tilt
+        out = self._output(outputs.observation)
+        truncated = outputs.truncated
         out.update(
             {
-                "reward": outputs["reward"],
+                "reward": outputs.reward,
                 "done": truncated,
                 "terminated": torch.zeros_like(truncated),
                 "truncated": truncated.clone(),
@@ -225,7 +227,7 @@ class WaterAirEnv(EnvBase):
         """Which links ``[B]`` (bool) the next step's fixed-iteration path solve would leave unconverged,
         from the present state (the solver's statistics: docs/benchmarks.md)."""
         state = self._full_state()
-        return ~kernel.solve(self.constants, state, state["time"] + self.config.dt).converged
+        return ~kernel.solve(self.constants, state, state.time + self.config.dt).converged
 
     # --- internals --------------------------------------------------------------------------
 
@@ -266,67 +268,65 @@ class WaterAirEnv(EnvBase):
         self.surface = WaveSurface.sample(self.sea, batch, generator=self._generator, device=device, dtype=dtype)
         tx, rx = (v.to(device, dtype).expand(batch, 3) for v in self.link.positions(torch.float64))
         prepared = self.channel.prepare(tx, rx, self.surface.unresolved)
-        shapes = kernel.state_shapes(self.config.history_length, self.config.latency_steps, prepared)
-        self.state: dict[str, torch.Tensor] = {
-            key: zeros(*shape, kind=kind or dtype) for key, (shape, kind) in shapes.items()
-        }
+        config = self.config
+        self.state = StepState.zeros(self.surface.harmonics, prepared, config.history_length, config.latency_steps)
         self._base_tilt = zeros(4)  # the residual base controller's tilts for the next action
-        self.measurement = {
-            "gain": zeros(),
-            "gain_upper_bound": zeros(),
-            "intensity": zeros(),
-            "path_valid": zeros(kind=torch.bool),
-            "alpha_d": zeros(),
-            "alpha_a": zeros(),
-            "departure": zeros(3),
-            "arrival": zeros(3),
-        }
+        self.measurement = Measurement(
+            gain=zeros(),
+            gain_upper_bound=zeros(),
+            intensity=zeros(),
+            path_valid=zeros(kind=torch.bool),
+            alpha_d=zeros(),
+            alpha_a=zeros(),
+            departure=zeros(3),
+            arrival=zeros(3),
+        )
 
-    def _full_state(self) -> dict[str, torch.Tensor]:
-        """The step's input: the seas' components and :attr:`state`."""
-        return {**{key: getattr(self.surface, key) for key in SURFACE_KEYS}, **self.state}
+    def _full_state(self) -> StepState:
+        """The step's input: :attr:`state` on the seas of :attr:`surface`."""
+        return replace(self.state, sea=self.surface.harmonics)
 
     @property
     def time(self) -> torch.Tensor:
         """Each link's time since its reset (s), ``[B]``."""
-        return self.state["time"]
+        return self.state.time
 
     @property
     def steps(self) -> torch.Tensor:
         """Each link's steps since its reset, ``[B]`` int64."""
-        return self.state["steps"]
+        return self.state.steps
 
     @property
     def point(self) -> torch.Tensor:
         """Each link's present path point P (m), ``[B, 3]`` (the calm-sea point where the path is invalid)."""
-        return self.state["point"]
+        return self.state.point
 
     @property
     def reference_gain(self) -> torch.Tensor:
         """G_0 of each link's geometry (1/m²), ``[B]``: the intensity reference."""
-        return self.state["reference_gain"]
+        return self.state.reference_gain
 
     @property
     def divergence(self) -> torch.Tensor:
         """Each link's beam divergence ω_D (rad), ``[B]`` (``env.divergence_range`` draws it at a reset)."""
-        return self.state["divergence"]
+        return self.state.divergence
 
     @property
     def tx_position(self) -> torch.Tensor:
-        return self.state["tx_position"]
+        return self.state.tx_position
 
     @property
     def rx_position(self) -> torch.Tensor:
-        return self.state["rx_position"]
+        return self.state.rx_position
 
     @property
     def tilt(self) -> torch.Tensor:
         """The present commanded tilt vectors (tx_vx, tx_vy, rx_vx, rx_vy), ``[B, 4]``."""
-        return torch.cat((self.state["tx_tilt"], self.state["rx_tilt"]), dim=-1)
+        return torch.cat((self.state.tx_tilt, self.state.rx_tilt), dim=-1)
 
     def _reset_rows(self, rows: torch.Tensor) -> None:
         """New seas, geometry, pointing and a cold path solve for ``rows`` (``[n]`` indices)."""
-        config, dtype, state = self.config, self.float_dtype, self.state
+        config, dtype = self.config, self.float_dtype
         distinct, copy = draws.distinct_links(config, rows)
         wind, direction = draws.sea_conditions(config, distinct, self._generator)
         surface = WaveSurface.sample(
@@ -355,18 +355,17 @@ class WaterAirEnv(EnvBase):
             zero,
             config.solver,
             init=flat[:, :2],
-            n_water=self.optics.n_water,
-            n_air=self.optics.n_air,
+            indices=self.optics.indices,
             compiled=self.config.compile_kernel,
         )
         upright = torch.zeros(rows.numel(), 2, device=self.device, dtype=dtype)
-        tilts = {"tx_tilt": upright, "rx_tilt": upright}
+        tilts = Tilts(upright, upright)
         noise = self.sensor.draw(self._noise_keys[rows.cpu()], dtype, self.device)
         ends = LinkEnds(tx, rx, flat, pointing(upright, up=True))
         light = self.stepper.reset_light(self.surface[rows], ends, prepared, path, zero, constants.channel)
-        measurement, packet, stored, _, feature = kernel.record(constants, tilts, path, light, reference, flat, noise)
+        measurement, readings, stored, _, feature = kernel.record(constants, tilts, path, light, reference, flat, noise)
         no_history = torch.zeros(rows.numel(), config.history_length, device=self.device, dtype=dtype)
-        packed = kernel.pack(packet, no_history)  # a reset has no older packet: it fills every slot
+        packed = kernel.pack(readings, no_history)  # a reset has no older packet: it fills every slot
         updates = {
             "time": zero,
             "steps": 0,
@@ -383,12 +382,14 @@ class WaterAirEnv(EnvBase):
             "last_feature": feature,
             "action_history": 0.0,
             "packets": packed.unsqueeze(1),
-            **prepared,
         }
+        entries = self.state.tensors()
         for key, value in updates.items():
-            state[key][rows] = value
-        for key, value in measurement.items():
-            self.measurement[key][rows] = value
+            entries[key][rows] = value
+        for key, value in prepared.items():
+            self.state.prepared[key][rows] = value
+        for mine, value in zip(self.measurement, measurement, strict=True):
+            mine[rows] = value
 
     def _output(self, observation: torch.Tensor, reset: torch.Tensor | None = None) -> TensorDict:
         """The step's TensorDict, with the observation's parts of this layout (of all parts), stacked
@@ -398,12 +399,12 @@ class WaterAirEnv(EnvBase):
         if self._stack is not None:
             observation = self._stack.push(observation) if reset is None else self._stack.reset(reset, observation)
         state = self.state
-        out = {key: value.clone() for key, value in self.measurement.items()}
+        out = {key: value.clone() for key, value in self.measurement._asdict().items()}
         out.update(
             observation=observation,
-            tx_position=state["tx_position"].clone(),
-            rx_position=state["rx_position"].clone(),
-            divergence=state["divergence"].clone(),
+            tx_position=state.tx_position.clone(),
+            rx_position=state.rx_position.clone(),
+            divergence=state.divergence.clone(),
             tilt=self.tilt,
             base_tilt=self._base_tilt,
         )

@@ -11,13 +11,13 @@ has not converged to the adaptive solver and redoes :func:`conclude` for them.
 The channel is a :class:`~waterair.physics.channel.ChannelModel` held by the step's constants
 (:class:`~waterair.envs.constants.StepConstants`): the step asks it for the light and reads it through it;
 nothing here knows which model it is.
-The state is a plain ``dict`` of tensors (:func:`state_shapes`); nothing here keeps state.
+The state, the readings and what a step gives back are named and typed (:mod:`waterair.envs.state`); nothing here
+keeps state.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from typing import NamedTuple
 
 import torch
@@ -25,7 +25,6 @@ import torch
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
 from waterair.envs.constants import StepConstants
 from waterair.envs.sensors import (
-    PACKET_PARTS,
     back_projection,
     beacon_pointing,
     intensity_feature,
@@ -33,91 +32,46 @@ from waterair.envs.sensors import (
     read_parked,
     spot_position,
 )
+from waterair.envs.state import Measurement, Moved, Outputs, Packet, Readings, StepResult, StepState, Tilts
 from waterair.physics.channel import LightSamples, LinkEnds, pointing, read_beacon
 from waterair.physics.optics import per_link, unit_vector
-from waterair.physics.paths import PathSolution, finish_path, near_calm_point
+from waterair.physics.paths import FixedNewtonOptions, Iterate, PathSolution, finish_path, near_calm_point
 from waterair.physics.paths.fixed import fixed_newton_terms
-from waterair.physics.surface import Harmonics
 
-SURFACE_KEYS = Harmonics._fields
-"""The seas' resolved components in the state, in the order of :class:`~waterair.physics.surface.Harmonics`."""
 DIVERGENCE_SPAN = (0.005, 0.1)
 """The beam divergences (rad) the observation's ``divergence`` part reads as −1 and 1: it is linear in log ω_D."""
-MEASUREMENT_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid", "alpha_d", "alpha_a", "departure", "arrival")
-"""The true values each step reports beside the observation."""
-
-
-def state_shapes(
-    history_length: int, latency_steps: int, prepared: Mapping[str, torch.Tensor]
-) -> dict[str, tuple[tuple[int, ...], torch.dtype | None]]:
-    """Every state entry besides the seas' components (:data:`SURFACE_KEYS`): its per-link shape and its
-    dtype (None: the environment's float dtype). The clock, the gimbals, the geometry, the beam divergence ω_D,
-    the last two path points (the prediction), the calm-sea point and G_0, the sensor history, the packets in
-    flight ``[slots, width]``, and the channel's per-episode constants (``prepared``, one link's worth each)."""
-    return {
-        "time": ((), None),
-        "steps": ((), torch.int64),
-        "tx_tilt": ((2,), None),
-        "rx_tilt": ((2,), None),
-        "tx_position": ((3,), None),
-        "rx_position": ((3,), None),
-        # ω_D (rad), the link's own (drawn at its reset), as exact as the configuration's float: the gains take
-        # what they derive from it in float64, as from a float (optics.per_link)
-        "divergence": ((), torch.float64),
-        "point": ((3,), None),
-        "previous_point": ((3,), None),
-        "flat_point": ((3,), None),
-        "reference_gain": ((), None),
-        "history": ((history_length,), None),  # previous measured intensity features
-        "last_feature": ((), None),  # the newest measured intensity feature
-        "action_history": ((history_length, 4), None),
-        # the packets in flight, newest first; the controller sees the last slot
-        "packets": ((latency_steps + 1, sum(packet_sizes(history_length))), None),
-        **{key: (tuple(value.shape[1:]), None) for key, value in prepared.items()},
-    }
-
-
-class Solve(NamedTuple):
-    """A path solve's result per link: P ``[B, 3]``, slopes ``[B, 2]``, the final (x, y) ``[B, 2]``
-    (where more iterations would start), converged ``[B]`` and iterations taken ``[B]``."""
-
-    point: torch.Tensor
-    slope: torch.Tensor
-    xy: torch.Tensor
-    converged: torch.Tensor
-    iterations: torch.Tensor
 
 
 class Record(NamedTuple):
-    """What a solved path and its light give (:func:`record`): the true ``measurement`` (dict of ``[n]``
-    tensors), the sensor ``packet`` (dict of parts), the ``stored`` warm start ``[n, 3]``, whether the
-    path's own point was stored (``tracked`` ``[n]``) and the measured intensity ``feature`` ``[n]``."""
+    """What a solved path and its light give (:func:`record`): the true ``measurement``, the sensors'
+    ``readings``, the ``stored`` warm start ``[n, 3]``, whether the path's own point was stored (``tracked``
+    ``[n]``) and the measured intensity ``feature`` ``[n]``."""
 
-    measurement: dict
-    packet: dict
+    measurement: Measurement
+    readings: Readings
     stored: torch.Tensor
     tracked: torch.Tensor
     feature: torch.Tensor
 
 
-def advance(c: StepConstants, state: dict, action: torch.Tensor) -> dict:
+def advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
     """Gimbals, action history and clock after ``action`` ``[B, 4]`` (already clipped to [-1, 1])."""
     if c.action_mode == "absolute":
         tx, rx = action[:, :2] * c.max_tilt, action[:, 2:] * c.max_tilt
     elif c.action_mode == "residual":
         # the correction applies from the first reading taken with the controller's own pointing
-        base, tracking = base_tilts(c, state), ~read_parked(state["steps"], c.sensor.latency_steps)
+        base, tracking = base_tilts(c, state), ~read_parked(state.steps, c.sensor.latency_steps)
         residual = action * (c.residual * tracking.to(action.dtype)).unsqueeze(-1)
         tx, rx = base[:, :2] + residual[:, :2], base[:, 2:] + residual[:, 2:]
     else:
-        tx, rx = state["tx_tilt"] + action[:, :2] * c.slew_step, state["rx_tilt"] + action[:, 2:] * c.slew_step
-    return {
-        "tx_tilt": limit_tilt(tx, c.max_tilt),
-        "rx_tilt": limit_tilt(rx, c.max_tilt),
-        "action_history": torch.cat((action.unsqueeze(1), state["action_history"][:, :-1]), dim=1),
-        "time": state["time"] + c.dt,
-        "steps": state["steps"] + 1,
-    }
+        tx, rx = state.tx_tilt + action[:, :2] * c.slew_step, state.rx_tilt + action[:, 2:] * c.slew_step
+    return Moved(
+        tx_tilt=limit_tilt(tx, c.max_tilt),
+        rx_tilt=limit_tilt(rx, c.max_tilt),
+        action_history=torch.cat((action.unsqueeze(1), state.action_history[:, :-1]), dim=1),
+        time=state.time + c.dt,
+        steps=state.steps + 1,
+    )
 
 
 def flat_tilts(point: torch.Tensor, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
@@ -125,27 +79,27 @@ def flat_tilts(point: torch.Tensor, tx: torch.Tensor, rx: torch.Tensor) -> torch
     return torch.cat((unit_vector(point - tx)[:, :2], unit_vector(point - rx)[:, :2]), dim=-1)
 
 
-def base_tilts(c: StepConstants, state: dict) -> torch.Tensor:
+def base_tilts(c: StepConstants, state: StepState) -> torch.Tensor:
     """The residual base controller's tilts ``[B, 4]`` for the next action: flat-sea Snell, or the
     quadrant-detector back-projection of the delivered packet (flat-sea Snell where it has no reading, or
     only the one read with the gimbals parked at the reset)."""
-    point, tx, rx = state["flat_point"], state["tx_position"], state["rx_position"]
+    point, tx, rx = state.flat_point, state.tx_position, state.rx_position
     if c.residual_base == "flat_snell":
         return flat_tilts(point, tx, rx)
-    delivered = unpack(state["packets"][:, -1])
+    delivered = unpack(state.packets[:, -1])
     flat = unit_vector(point - tx), unit_vector(point - rx)
     if c.residual_base == "beacon_tracker":
         assert c.beacon is not None  # EnvConfig.senses_beacon: a beacon base reads the beacon
         tx_dir, rx_dir = beacon_pointing(
-            (delivered["tx_pointing"], delivered["beacon"], delivered["beacon_valid"][:, 0] > 0.5),
-            (delivered["rx_pointing"], delivered["spot"], delivered["spot_valid"][:, 0] > 0.5),
+            (delivered.tx_pointing, delivered.beacon, delivered.beacon_valid[:, 0] > 0.5),
+            (delivered.rx_pointing, delivered.spot, delivered.spot_valid[:, 0] > 0.5),
             flat,
             c.beacon.half_fov,
             c.optics.half_fov,
         )
         return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
-    seen = (delivered["spot_valid"][:, 0] > 0.5) & ~read_parked(state["steps"], c.sensor.latency_steps)
-    tx_dir, rx_dir = back_projection(delivered["rx_pointing"], delivered["spot"], seen, tx, rx, flat, c.optics.half_fov)
+    seen = (delivered.spot_valid[:, 0] > 0.5) & ~read_parked(state.steps, c.sensor.latency_steps)
+    tx_dir, rx_dir = back_projection(delivered.rx_pointing, delivered.spot, seen, tx, rx, flat, c.optics.half_fov)
     return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
 
 
@@ -155,86 +109,83 @@ def limit_tilt(tilt: torch.Tensor, max_tilt: float) -> torch.Tensor:
     return tilt * (max_tilt / norm.clamp(min=max_tilt))
 
 
-def predicted_point(state: dict) -> torch.Tensor:
+def predicted_point(state: StepState) -> torch.Tensor:
     """The next path point's (x, y) ``[B, 2]``, extrapolated from the last two (it moves smoothly)."""
-    return 2.0 * state["point"][:, :2] - state["previous_point"][:, :2]
+    return 2.0 * state.point[:, :2] - state.previous_point[:, :2]
 
 
-def solve(c: StepConstants, state: dict, time: torch.Tensor, start=None, iterations: int | None = None) -> Solve:
-    """Masked Newton iterations (``c.solver.iterations`` by default) from ``start`` (default: the predicted point)."""
-    terms = fixed_newton_terms(
-        *(state[key] for key in SURFACE_KEYS),
+def solve(
+    c: StepConstants, state: StepState, time: torch.Tensor, start=None, options: FixedNewtonOptions | None = None
+) -> Iterate:
+    """Masked Newton iterations (``options``, by default ``c.solver``) from ``start`` (default: the predicted
+    point)."""
+    return fixed_newton_terms(
+        state.sea,
         predicted_point(state) if start is None else start,
         time,
-        state["tx_position"],
-        state["rx_position"],
+        state.tx_position,
+        state.rx_position,
         c.optics.n_water,
         c.optics.n_air,
-        c.solver.iterations if iterations is None else iterations,
-        c.tolerance,
-        c.solver.armijo,
-        c.solver.max_step,
+        c.solver if options is None else options,
     )
-    return Solve(*terms)
 
 
 def channel_light(
-    c: StepConstants, state: dict, path: PathSolution, moved: dict, generator: torch.Generator | None = None
+    c: StepConstants, state: StepState, path: PathSolution, moved: Moved, generator: torch.Generator | None = None
 ) -> LightSamples:
     """The channel's light for the links of ``state`` (their seas, ends and the channel's per-episode
     constants) through the tracked ``path``, at the time and transmitter pointing of the gimbals ``moved``."""
-    sea = Harmonics(*(state[key] for key in SURFACE_KEYS))
-    tx_dir = pointing(moved["tx_tilt"], up=True)
-    ends = LinkEnds(state["tx_position"], state["rx_position"], state["flat_point"], tx_dir)
-    prepared = {key: state[key] for key in c.channel.prepared_keys}
-    return c.channel.light(sea, path, ends, moved["time"], prepared, generator, copies=c.replicas)
+    tx_dir = pointing(moved.tx_tilt, up=True)
+    ends = LinkEnds(state.tx_position, state.rx_position, state.flat_point, tx_dir)
+    return c.channel.light(state.sea, path, ends, moved.time, state.prepared, generator, copies=c.replicas)
 
 
 def record(
     c: StepConstants,
-    tilts: dict,
+    tilts: Tilts,
     path: PathSolution,
     light: LightSamples,
     reference_gain,
     flat_point,
     noise,
     copies: int = 1,
-):
-    """What a solved path and its ``light`` give: the true measurement, the sensor packet and the next warm
+) -> Record:
+    """What a solved path and its ``light`` give: the true measurement, the sensor readings and the next warm
     start (:class:`Record`). An invalid path stores the calm-sea point, so that the next solve does not
     start from a lost one. ``copies``: the links are that many copies of the first B / copies (a step's
     ``c.replicas``; a reset of some links, 1).
     """
-    tx_dir, rx_dir = pointing(tilts["tx_tilt"], up=True), pointing(tilts["rx_tilt"], up=False)
+    tx_dir, rx_dir = pointing(tilts.tx_tilt, up=True), pointing(tilts.rx_tilt, up=False)
     received = c.channel.receive(light, tx_dir, rx_dir, copies=copies)
-    true = {
-        "gain": received.gain,
-        "gain_upper_bound": received.upper_bound,
-        "path_valid": received.valid,
-        "alpha_d": received.alpha_d,
-        "alpha_a": received.alpha_a,
-        "departure": received.departure,
-        "arrival": received.arrival,
-    }
-    intensity = true["gain"] / reference_gain
+    intensity = received.gain / reference_gain
     measured = c.sensor.intensity(intensity, noise)
     seen = spot_position(received.spot_arrival, rx_dir, c.optics.half_fov)
     spot, spot_valid = c.sensor.spot(seen, received.lit, measured, noise)
     feature = intensity_feature(measured)
     beacon, beacon_valid = read_beacon_packet(c, light, tx_dir, rx_dir, reference_gain, noise)
-    packet = {
-        "tx_pointing": tx_dir,
-        "rx_pointing": rx_dir,
-        "intensity": feature.unsqueeze(-1),
-        "spot": spot,
-        "spot_valid": spot_valid.unsqueeze(-1),
-        "beacon": beacon,
-        "beacon_valid": beacon_valid.unsqueeze(-1),
-    }
-    measurement = {**true, "intensity": intensity}
+    readings = Readings(
+        tx_pointing=tx_dir,
+        rx_pointing=rx_dir,
+        intensity=feature.unsqueeze(-1),
+        spot=spot,
+        spot_valid=spot_valid.unsqueeze(-1),
+        beacon=beacon,
+        beacon_valid=beacon_valid.unsqueeze(-1),
+    )
+    measurement = Measurement(
+        gain=received.gain,
+        gain_upper_bound=received.upper_bound,
+        intensity=intensity,
+        path_valid=received.valid,
+        alpha_d=received.alpha_d,
+        alpha_a=received.alpha_a,
+        departure=received.departure,
+        arrival=received.arrival,
+    )
     tracked = path.valid if c.channel.needs_exact_point else near_calm_point(path, flat_point)
     stored = torch.where(tracked.unsqueeze(-1), path.point, flat_point)
-    return Record(measurement, packet, stored, tracked, feature)
+    return Record(measurement, readings, stored, tracked, feature)
 
 
 def read_beacon_packet(c: StepConstants, light: LightSamples, tx_dir, rx_dir, reference_gain, noise):
@@ -249,98 +200,99 @@ def read_beacon_packet(c: StepConstants, light: LightSamples, tx_dir, rx_dir, re
     return c.sensor.beacon(true, seen.lit, level, noise)
 
 
-def pack(packet: dict, history: torch.Tensor) -> torch.Tensor:
-    """One packet ``[n, width]``: the parts of :data:`PACKET_PARTS` side by side."""
-    return torch.cat([packet[name] for name in PACKET_PARTS[:-1]] + [history], dim=-1)
+def pack(readings: Readings, history: torch.Tensor) -> torch.Tensor:
+    """One packet ``[n, width]``: the ``readings`` and the ``history`` side by side, the parts of
+    :data:`~waterair.envs.sensors.PACKET_PARTS`."""
+    return torch.cat([*readings, history], dim=-1)
 
 
-def unpack(packet: torch.Tensor) -> dict[str, torch.Tensor]:
+def unpack(packet: torch.Tensor) -> Packet:
     """The parts of one packet ``[n, width]`` by name (the inverse of :func:`pack`)."""
     history_length = packet.shape[-1] - sum(packet_sizes(0))
-    return dict(zip(PACKET_PARTS, packet.split(packet_sizes(history_length), dim=-1), strict=True))
+    return Packet(*packet.split(packet_sizes(history_length), dim=-1))
 
 
-def conclude(c: StepConstants, state: dict, moved: dict, solution: Solve, noise, light: LightSamples | None = None):
+def conclude(
+    c: StepConstants, state: StepState, moved: Moved, solution: Iterate, noise, light: LightSamples | None = None
+) -> StepResult:
     """The new state and the step's outputs, given the gimbals ``moved`` and the path ``solution``. The
     channel's light is computed here unless it comes as ``light`` (a model that does not compile)."""
-    c = c.for_links(state["divergence"])
+    c = c.for_links(state.divergence)
     n_w, n_a = c.optics.n_water, c.optics.n_air
-    tx, rx = state["tx_position"], state["rx_position"]
+    tx, rx = state.tx_position, state.rx_position
     path = finish_path(solution.point, solution.slope, tx, rx, solution.converged, solution.iterations, n_w, n_a)
     if light is None:
         light = channel_light(c, state, path, moved)
-    measurement, packet, stored, tracked, feature = record(
-        c, moved, path, light, state["reference_gain"], state["flat_point"], noise, c.replicas
+    measurement, readings, stored, tracked, feature = record(
+        c, moved.tilts, path, light, state.reference_gain, state.flat_point, noise, c.replicas
     )
-    history = torch.cat((state["last_feature"].unsqueeze(-1), state["history"][:, :-1]), dim=-1)
-    packets = torch.cat((pack(packet, history).unsqueeze(1), state["packets"][:, :-1]), dim=1)
-    new = {
-        **moved,
-        "point": stored,
-        "previous_point": torch.where(tracked.unsqueeze(-1), state["point"], stored),
-        "history": history,
-        "last_feature": feature,
-        "packets": packets,
-    }
-    outputs = {
-        **measurement,
-        "observation": observe(c, {**state, **new}),
-        "reward": c.reward(
-            measurement["intensity"], misalignment(c, measurement), measurement["gain"], state["divergence"]
-        ).unsqueeze(-1),
-        "truncated": (new["steps"] >= c.max_steps).unsqueeze(-1),
-        "base_tilt": base_tilts(c, {**state, **new}),
-    }
-    return new, outputs
+    history = torch.cat((state.last_feature.unsqueeze(-1), state.history[:, :-1]), dim=-1)
+    packets = torch.cat((pack(readings, history).unsqueeze(1), state.packets[:, :-1]), dim=1)
+    new = state.after(
+        moved,
+        point=stored,
+        previous_point=torch.where(tracked.unsqueeze(-1), state.point, stored),
+        history=history,
+        last_feature=feature,
+        packets=packets,
+    )
+    reward = c.reward(measurement.intensity, misalignment(c, measurement), measurement.gain, state.divergence)
+    outputs = Outputs(
+        measurement=measurement,
+        observation=observe(c, new),
+        reward=reward.unsqueeze(-1),
+        truncated=(new.steps >= c.max_steps).unsqueeze(-1),
+        base_tilt=base_tilts(c, new),
+    )
+    return StepResult(new, outputs, moved, solution)
 
 
-def step(c: StepConstants, state: dict, action: torch.Tensor, noise: torch.Tensor | None):
-    """One step of every link: (new state entries, outputs, the gimbals ``moved``, the :class:`Solve`).
+def step(c: StepConstants, state: StepState, action: torch.Tensor, noise: torch.Tensor | None) -> StepResult:
+    """One step of every link: the new state, its outputs, the gimbals ``moved`` and the path solve.
 
     The solve is returned for finishing the links that have not converged
     (:func:`waterair.physics.paths.fixed.finish_unconverged`) and concluding again. ``noise`` is the
     sensor's draw for this step (:meth:`Sensor.draw`), or None for a noiseless one.
     """
     moved = advance(c, state, action)
-    solution = solve(c, state, moved["time"])
-    new, outputs = conclude(c, state, moved, solution, noise)
-    return new, outputs, moved, solution
+    return conclude(c, state, moved, solve(c, state, moved.time), noise)
 
 
-def finish(c: StepConstants, state: dict, moved: dict, solution: Solve, noise, iterations: int):
-    """:func:`step`'s solve continued for ``iterations`` more masked iterations on every link, then concluded.
+def finish(
+    c: StepConstants, state: StepState, moved: Moved, solution: Iterate, noise, options: FixedNewtonOptions
+) -> StepResult:
+    """:func:`step`'s solve continued for ``options.iterations`` more masked iterations on every link, then
+    concluded.
 
     For small batches, where a dense pass costs less than gathering the unconverged links; links
-    that had converged take no step. Returns (new state entries, outputs, the :class:`Solve`).
+    that had converged take no step.
     """
-    more = solve(c, state, moved["time"], solution.xy, iterations)
-    solution = more._replace(iterations=solution.iterations + more.iterations)
-    new, outputs = conclude(c, state, moved, solution, noise)
-    return new, outputs, solution
+    more = solve(c, state, moved.time, solution.xy, options)
+    return conclude(c, state, moved, more._replace(iterations=solution.iterations + more.iterations), noise)
 
 
-def misalignment(c: StepConstants, measurement: dict) -> torch.Tensor:
+def misalignment(c: StepConstants, measurement: Measurement) -> torch.Tensor:
     """α_D / ω_D + α_A / ω_A ``[B]``: how far both ends point from the present path (0 on an invalid one)."""
-    alpha_d = measurement["alpha_d"]
-    angles = alpha_d / per_link(c.optics.divergence, alpha_d) + measurement["alpha_a"] / c.optics.half_fov
-    return torch.where(measurement["path_valid"], angles, torch.zeros_like(angles))
+    alpha_d = measurement.alpha_d
+    angles = alpha_d / per_link(c.optics.divergence, alpha_d) + measurement.alpha_a / c.optics.half_fov
+    return torch.where(measurement.path_valid, angles, torch.zeros_like(angles))
 
 
-def observe(c: StepConstants, state: dict) -> torch.Tensor:
+def observe(c: StepConstants, state: StepState) -> torch.Tensor:
     """Every observation part ``[B, 17 + 5 · history_length]``, in the order of the full layout.
 
     The delivered packet's parts, then the controller's own knowledge (time, action history,
     geometry), which is never late. An environment keeps the columns of the parts its layout asks
     for (:func:`observation_columns`), outside the graph, so that every preset shares one graph.
     """
-    delivered = unpack(state["packets"][:, -1])
-    time = (state["time"] / c.episode_seconds).unsqueeze(-1)
-    geometry = (state["rx_position"] - state["tx_position"])[:, :2] / c.vertical_distance
+    delivered = unpack(state.packets[:, -1])
+    time = (state.time / c.episode_seconds).unsqueeze(-1)
+    geometry = (state.rx_position - state.tx_position)[:, :2] / c.vertical_distance
     narrow, wide = DIVERGENCE_SPAN
-    divergence = torch.log(state["divergence"] ** 2 / (narrow * wide)) / math.log(wide / narrow)
+    divergence = torch.log(state.divergence**2 / (narrow * wide)) / math.log(wide / narrow)
     divergence = divergence.to(time.dtype).unsqueeze(-1)
-    late = [delivered[name] for name in PACKET_PARTS]
-    return torch.cat((*late[:3], time, *late[3:], state["action_history"].flatten(1), geometry, divergence), dim=-1)
+    late = list(delivered)
+    return torch.cat((*late[:3], time, *late[3:], state.action_history.flatten(1), geometry, divergence), dim=-1)
 
 
 def observation_columns(config: EnvConfig) -> list[int] | None:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from copy import copy as shallow_copy
+from dataclasses import dataclass
 
 import torch
 
@@ -129,6 +130,32 @@ def packet_sizes(history_length: int) -> tuple[int, ...]:
     return (3, 3, 1, 2, 1, 2, 1, history_length)
 
 
+@dataclass(frozen=True)
+class SensorSettings:
+    """The sensing keys of an environment (``EnvConfig.sensing``, validated there); the defaults are the ideal
+    sensor.
+
+    Attributes:
+        latency_steps: steps a packet takes to reach the controller (0: the present model).
+        intensity_noise: relative standard deviation of the measured intensity.
+        intensity_noise_floor: additive standard deviation (units of I: the detector floor).
+        intensity_saturation: the largest measurable I, or None.
+        spot_noise_rad: standard deviation of each spot component, as an angle (rad).
+        spot_threshold: measured I below which the spot reads nothing (``spot_valid`` 0, spot 0).
+        beacon_noise_rad: standard deviation of each component of the transmitter's beacon reading (rad).
+        beacon_threshold: beacon intensity (G_B over its calm-sea value) below which it reads nothing.
+    """
+
+    latency_steps: int = 0
+    intensity_noise: float = 0.0
+    intensity_noise_floor: float = 0.0
+    intensity_saturation: float | None = None
+    spot_noise_rad: float = 0.0
+    spot_threshold: float = 0.0
+    beacon_noise_rad: float = 0.0
+    beacon_threshold: float = 0.0
+
+
 class Sensor:
     """The sensor settings of one environment and the readings they turn true values into.
 
@@ -136,46 +163,32 @@ class Sensor:
     the compiled step from the sensor's own generator), so the step stays one graph.
 
     Args:
-        latency_steps: steps a packet takes to reach the controller (0: the present model).
-        intensity_noise: relative standard deviation of the measured intensity.
-        intensity_noise_floor: additive standard deviation (units of I: the detector floor).
-        intensity_saturation: the largest measurable I, or None.
-        spot_noise_rad: standard deviation of each spot component, as an angle (rad).
-        spot_threshold: measured I below which the spot reads nothing (``spot_valid`` 0, spot 0).
+        settings: the sensing keys (:class:`SensorSettings`).
         half_fov: receiver half field of view ω_A (rad), the spot's scale.
         generator: the CPU generator of the readings' nonces (its own, so that noise never shifts the seas).
-        beacon_noise_rad: standard deviation of each component of the transmitter's beacon reading (rad).
-        beacon_threshold: beacon intensity (G_B over its calm-sea value) below which it reads nothing.
         beacon_half_fov: the beacon detector's half field of view (rad), the beacon reading's scale.
     """
 
     def __init__(
         self,
-        latency_steps: int,
-        intensity_noise: float,
-        intensity_noise_floor: float,
-        intensity_saturation: float | None,
-        spot_noise_rad: float,
-        spot_threshold: float,
+        settings: SensorSettings,
         half_fov: float,
         generator: torch.Generator,
-        beacon_noise_rad: float = 0.0,
-        beacon_threshold: float = 0.0,
         beacon_half_fov: float = Beacon.half_fov,
     ):
-        self.latency_steps = latency_steps
-        self.intensity_noise: Scalar = intensity_noise
-        self.intensity_noise_floor: Scalar = intensity_noise_floor
-        self.intensity_saturation = intensity_saturation
-        self.spot_noise: Scalar = spot_noise_rad / math.tan(half_fov)
-        self.spot_threshold: Scalar = spot_threshold
-        self.beacon_noise: Scalar = beacon_noise_rad / math.tan(beacon_half_fov)
-        self.beacon_threshold: Scalar = beacon_threshold
+        self.latency_steps = settings.latency_steps
+        self.intensity_noise: Scalar = settings.intensity_noise
+        self.intensity_noise_floor: Scalar = settings.intensity_noise_floor
+        self.intensity_saturation = settings.intensity_saturation
+        self.spot_noise: Scalar = settings.spot_noise_rad / math.tan(half_fov)
+        self.spot_threshold: Scalar = settings.spot_threshold
+        self.beacon_noise: Scalar = settings.beacon_noise_rad / math.tan(beacon_half_fov)
+        self.beacon_threshold: Scalar = settings.beacon_threshold
         self.generator = generator
         # which noise sources are on: decided here, on the floats, so that a traced copy branches the same way
-        self.noisy_intensity = bool(intensity_noise or intensity_noise_floor)
-        self.noisy_spot = bool(spot_noise_rad)
-        self.noisy_beacon = bool(beacon_noise_rad)
+        self.noisy_intensity = bool(settings.intensity_noise or settings.intensity_noise_floor)
+        self.noisy_spot = bool(settings.spot_noise_rad)
+        self.noisy_beacon = bool(settings.beacon_noise_rad)
         self._noise_on = torch.tensor([self.noisy_intensity] * 2 + [self.noisy_spot] * 2 + [self.noisy_beacon] * 2)
 
     def traced(self, device: torch.device) -> Sensor:

@@ -20,9 +20,9 @@ from tensordict import TensorDict, is_tensorclass
 
 from waterair.envs import kernel
 from waterair.envs.constants import StepConstants
-from waterair.envs.kernel import Solve
+from waterair.envs.state import StepResult, StepState
 from waterair.physics.channel import ChannelModel, LightSamples, LinkEnds
-from waterair.physics.paths import FixedNewtonOptions, PathSolution, finish_path, solve_path
+from waterair.physics.paths import FixedNewtonOptions, Iterate, PathProblem, PathSolution, finish_path, solve_path
 from waterair.physics.paths.fixed import finish_unconverged
 from waterair.physics.surface import WaveSurface
 
@@ -97,14 +97,20 @@ class Stepper:
         self._step, self._finish, self._conclude = pick("step"), pick("finish"), pick("conclude")
         # what the compiled functions get: the numbers that vary between environments as tensors (one graph)
         self.traced = constants.traced(torch.device(device)) if compile_kernel else constants
+        self.finishing = FixedNewtonOptions(
+            iterations=FINISH_ITERATIONS,
+            tol=constants.tolerance,
+            armijo=constants.solver.armijo,
+            max_step=constants.solver.max_step,
+        )
 
-    def __call__(self, surface: WaveSurface, state: dict, action: torch.Tensor, noise):
-        """(new state entries, outputs) of one step; ``state`` includes the surface's components."""
+    def __call__(self, surface: WaveSurface, state: StepState, action: torch.Tensor, noise) -> StepResult:
+        """One step of the links of ``state`` (whose seas are ``surface``'s)."""
         c = self.constants
         if not c.channel.compiles:
-            c = c.for_links(state["divergence"])
+            c = c.for_links(state.divergence)
             moved = kernel.advance(c, state, action)
-            solution = kernel.solve(c, state, moved["time"])
+            solution = kernel.solve(c, state, moved.time)
             n_w, n_a = c.optics.n_water, c.optics.n_air
             path = _path(solution, state, n_w, n_a)
             light = kernel.channel_light(c, state, path, moved, self.generator)
@@ -113,22 +119,21 @@ class Stepper:
             moved = kernel.advance(c, state, action)
             path = solve_path(
                 surface,
-                state["tx_position"],
-                state["rx_position"],
-                moved["time"],
+                state.tx_position,
+                state.rx_position,
+                moved.time,
                 "centroid",
-                init=state["point"][:, :2],
-                n_water=c.optics.n_water,
-                n_air=c.optics.n_air,
+                init=state.point[:, :2],
+                indices=c.optics.indices,
                 compiled=self.compile_kernel,
             )
             slope = -path.normal[:, :2] / path.normal[:, 2:]
-            solution = Solve(path.point, slope, path.point[:, :2], path.valid, path.iterations)
+            solution = Iterate(path.point, slope, path.point[:, :2], path.valid, path.iterations)
             return self._conclude(self.traced, state, moved, solution, noise)
-        new, outputs, moved, solution = self._step(self.traced, state, action, noise)
-        if not c.channel.needs_exact_point or bool(solution.converged.all()):  # the step's one host synchronisation
-            return new, outputs
-        return self._finish_paths(surface, state, moved, solution, noise)
+        result = self._step(self.traced, state, action, noise)
+        if not c.channel.needs_exact_point or bool(result.solution.converged.all()):  # the step's one host sync
+            return result
+        return self._finish_paths(surface, state, result, noise)
 
     def reset_light(
         self,
@@ -143,8 +148,9 @@ class Stepper:
         constants; the channel with their divergences, :meth:`StepConstants.for_links`), eagerly."""
         return channel.light(surface.harmonics, path, ends, time, prepared, self.generator)
 
-    def _finish_paths(self, surface: WaveSurface, state: dict, moved: dict, solution: tuple, noise):
-        """Finish the links whose fixed-iteration solve has not converged, then conclude the step again.
+    def _finish_paths(self, surface: WaveSurface, state: StepState, result: StepResult, noise) -> StepResult:
+        """Finish the links whose fixed-iteration solve of the step ``result`` has not converged, then conclude the
+        step again.
 
         A few per cent of links at 12 m/s, where the path point moves fast (near a caustic) or jumps
         between branches. They take :data:`FINISH_ITERATIONS` more masked iterations: compiled and
@@ -152,33 +158,17 @@ class Stepper:
         (the same iterations, so the same result). The very few still left finish with the
         adaptive solver.
         """
-        c = self.constants
-        if self.compile_kernel and state["time"].shape[0] <= DENSE_FINISH_BATCH:
-            new, outputs, solution = self._finish(self.traced, state, moved, solution, noise, FINISH_ITERATIONS)
-            if bool(solution.converged.all()):
-                return new, outputs
-        options = FixedNewtonOptions(
-            iterations=FINISH_ITERATIONS, tol=c.tolerance, armijo=c.solver.armijo, max_step=c.solver.max_step
-        )
-        point, slope, converged, taken = finish_unconverged(
-            solution.point,
-            solution.slope,
-            solution.xy,
-            solution.converged,
-            solution.iterations,
-            surface,
-            state["tx_position"],
-            state["rx_position"],
-            moved["time"],
-            c.optics.n_water,
-            c.optics.n_air,
-            options,
-            self.compile_kernel,
-        )
-        return self._conclude(self.traced, state, moved, Solve(point, slope, solution.xy, converged, taken), noise)
+        c, moved = self.constants, result.moved
+        if self.compile_kernel and state.time.shape[0] <= DENSE_FINISH_BATCH:
+            result = self._finish(self.traced, state, moved, result.solution, noise, self.finishing)
+            if bool(result.solution.converged.all()):
+                return result
+        problem = PathProblem(surface, state.tx_position, state.rx_position, moved.time, c.optics.indices)
+        solution = finish_unconverged(problem, result.solution, self.finishing, self.compile_kernel)
+        return self._conclude(self.traced, state, moved, solution, noise)
 
 
-def _path(solution: Solve, state: dict, n_w: float, n_a: float) -> PathSolution:
+def _path(solution: Iterate, state: StepState, n_w: float, n_a: float) -> PathSolution:
     """The path through a solve's point, between the state's ends."""
-    tx, rx = state["tx_position"], state["rx_position"]
+    tx, rx = state.tx_position, state.rx_position
     return finish_path(solution.point, solution.slope, tx, rx, solution.converged, solution.iterations, n_w, n_a)

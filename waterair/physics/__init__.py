@@ -28,8 +28,9 @@ from waterair.physics.channel import (
     trace,
 )
 from waterair.physics.link import LinkBudget, LinkPerformance, Receiver, link_performance
+from waterair.physics.optics import RefractiveIndices
 from waterair.physics.paths import CentroidOptions, NewtonOptions, PathSolution, flat_sea_point, solve_path
-from waterair.physics.paths.census import RefractionPoints, refraction_points
+from waterair.physics.paths.census import CensusOptions, RefractionPoints, refraction_points
 from waterair.physics.sea import (
     ElfouhailySea,
     JonswapSea,
@@ -45,6 +46,7 @@ from waterair.physics.surface import Harmonics, SurfaceSample, WaveSurface
 
 __all__ = [
     "CHANNELS",
+    "CensusOptions",
     "CentroidOptions",
     "ChannelGain",
     "ChannelModel",
@@ -64,6 +66,7 @@ __all__ = [
     "RayTube",
     "Receiver",
     "RefractionPoints",
+    "RefractiveIndices",
     "SeaState",
     "SinglePath",
     "SurfaceSample",

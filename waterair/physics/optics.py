@@ -6,7 +6,7 @@ docs/model.md §4 (paper Sec. II, eqs. (2)-(5)). Angles in radians, distances in
 from __future__ import annotations
 
 import math
-from typing import overload
+from typing import NamedTuple, overload
 
 import torch
 
@@ -14,6 +14,17 @@ N_WATER = 1.33
 """Refractive index of sea water n_w (paper n1), docs/model.md §0."""
 N_AIR = 1.0
 """Refractive index of air n_a (paper n2), docs/model.md §0."""
+
+
+class RefractiveIndices(NamedTuple):
+    """The refractive indices either side of the sea surface: ``n_water`` below (paper n1), ``n_air`` above."""
+
+    n_water: float = N_WATER
+    n_air: float = N_AIR
+
+
+WATER_AIR = RefractiveIndices()
+"""Sea water below the surface, air above (:data:`N_WATER`, :data:`N_AIR`)."""
 
 WATER_ATTENUATION_PER_M = {
     "pure_sea": 0.056,

@@ -43,8 +43,8 @@ class SurfaceSample:
 
 class Harmonics(NamedTuple):
     """The resolved surface of B seas as plain tensors, each ``[B, K]``: ``omega`` (rad/s), ``phase``
-    (rad), ``kx``, ``ky`` (rad/m), ``amplitude`` (m). What the surface and channel functions read, in
-    their argument order (``harmonic_sums(*harmonics, ...)``); a compiled step passes it through its graph."""
+    (rad), ``kx``, ``ky`` (rad/m), ``amplitude`` (m). What the surface and channel functions read, passed whole
+    (``harmonic_sums(harmonics, ...)``); a compiled step passes it through its graph."""
 
     omega: torch.Tensor
     phase: torch.Tensor
@@ -60,18 +60,18 @@ seas, 81 points and 768 harmonics (a lattice) one pass took 560 ms, 4-row chunks
 8-row chunks 500 ms, on 2 threads (docs/benchmarks.md, "Eager surface sums")."""
 
 
-def harmonic_sums(omega, phase, kx, ky, amplitude, x, y, t, order: int):
+def harmonic_sums(sea: Harmonics, x, y, t, order: int):
     """Σ a cos ψ and its derivatives, ψ = ω t + ε − kx x − ky y, reduced over harmonics K.
 
-    Args: components ``[B, K]``; points ``x, y`` ``[B, P]`` (m); ``t`` ``[B]`` (s); ``order`` 0-2.
+    Args: ``sea``'s components ``[B, K]``; points ``x, y`` ``[B, P]`` (m); ``t`` ``[B]`` (s); ``order`` 0-2.
     Returns a tuple of ``[B, P]`` tensors: (η,), (η, η_x, η_y) or (η, η_x, η_y, η_xx, η_xy, η_yy).
 
     One elementwise expression, so that ``torch.compile`` fuses it into a single pass over the
     harmonics (see :func:`compiled_harmonic_sums`); eager PyTorch runs it in chunks of seas of about
     :data:`EAGER_CHUNK_ELEMENTS` points × harmonics (rows are independent: the same values).
     """
-    rows = max(1, EAGER_CHUNK_ELEMENTS // max(1, x[0].numel() * omega.shape[-1]))
-    return _in_chunks(functools.partial(_harmonic_sums, order=order), (omega, phase, kx, ky, amplitude, x, y, t), rows)
+    rows = max(1, EAGER_CHUNK_ELEMENTS // max(1, x[0].numel() * sea.omega.shape[-1]))
+    return _in_chunks(functools.partial(_harmonic_sums, order=order), (*sea, x, y, t), rows)
 
 
 def _in_chunks(sums, inputs: Sequence[torch.Tensor], rows: int):
@@ -85,7 +85,7 @@ def _in_chunks(sums, inputs: Sequence[torch.Tensor], rows: int):
 
 
 def _harmonic_sums(inputs: Sequence[torch.Tensor], order: int):
-    """:func:`harmonic_sums` of ``inputs`` (its arguments but ``order``) in one pass."""
+    """:func:`harmonic_sums` of ``inputs`` (the components, ``x``, ``y`` and ``t``) in one pass."""
     omega, phase, kx, ky, amplitude, x, y, t = inputs
     omega, phase, kx, ky, amplitude = (v.unsqueeze(1) for v in (omega, phase, kx, ky, amplitude))
     psi = omega * t[:, None, None] + phase - kx * x.unsqueeze(-1) - ky * y.unsqueeze(-1)
@@ -101,11 +101,11 @@ def _harmonic_sums(inputs: Sequence[torch.Tensor], order: int):
     return (height, *slopes, -(a_cos_kx * kx).sum(-1), -(a_cos_kx * ky).sum(-1), -(a_cos * ky * ky).sum(-1))
 
 
-def lattice_harmonic_sums(omega, phase, kx, ky, amplitude, centre, basis, grid, t, order: int):
+def lattice_harmonic_sums(sea: Harmonics, centre, basis, grid, t, order: int):
     """:func:`harmonic_sums` at the nodes of the affine lattices ``centre + basis · (g_i, g_j)``, without a
     sine and a cosine per node and harmonic.
 
-    Args: components ``[B, K]``; ``centre`` ``[B, 2]`` (m); ``basis`` ``[B, 2, 2]`` (m, its columns the
+    Args: ``sea``'s components ``[B, K]``; ``centre`` ``[B, 2]`` (m); ``basis`` ``[B, 2, 2]`` (m, its columns the
     lattice's steps per unit of ``grid``); ``grid`` ``[n]``, the node coordinates along each axis; ``t`` ``[B]``
     (s); ``order`` 0-2. Returns :func:`harmonic_sums`'s tuple, each ``[B, n²]``, node (i, j) at i n + j
     (``torch.meshgrid(grid, grid, indexing="ij")``).
@@ -117,13 +117,13 @@ def lattice_harmonic_sums(omega, phase, kx, ky, amplitude, centre, basis, grid, 
     ``[n, K]`` and the j-factors ``[K, n]``, in real arithmetic (docs/model.md §4.3). Eager PyTorch runs it in
     chunks of seas, as :func:`harmonic_sums`.
     """
-    rows = max(1, EAGER_CHUNK_ELEMENTS // (grid.shape[0] * omega.shape[-1]))
-    inputs = (omega, phase, kx, ky, amplitude, centre, basis, t)
+    rows = max(1, EAGER_CHUNK_ELEMENTS // (grid.shape[0] * sea.omega.shape[-1]))
+    inputs = (*sea, centre, basis, t)
     return _in_chunks(functools.partial(_lattice_sums, grid=grid, order=order), inputs, rows)
 
 
 def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int):
-    """:func:`lattice_harmonic_sums` of ``inputs`` (its arguments but ``grid`` and ``order``) in one pass."""
+    """:func:`lattice_harmonic_sums` of ``inputs`` (the components, ``centre``, ``basis`` and ``t``) in one pass."""
     omega, phase, kx, ky, amplitude, centre, basis, t = inputs
     psi = omega * t.unsqueeze(-1) + phase - kx * centre[:, :1] - ky * centre[:, 1:]
     c_re, c_im = (amplitude * torch.cos(psi)).unsqueeze(1), (amplitude * torch.sin(psi)).unsqueeze(1)  # a e^{iψ_c}
@@ -281,7 +281,7 @@ class WaveSurface(TensorClass):
             x, y = x.unsqueeze(-1), y.unsqueeze(-1)
         time = torch.as_tensor(t, dtype=self.omega.dtype, device=self.omega.device).expand(x.shape[0])
         kernel = compiled_harmonic_sums() if compiled else harmonic_sums
-        sums = kernel(self.omega, self.phase, self.kx, self.ky, self.amplitude, x, y, time, order)
+        sums = kernel(self.harmonics, x, y, time, order)
         if single:
             sums = tuple(v.squeeze(-1) for v in sums)
         return SurfaceSample(*sums)
@@ -291,12 +291,13 @@ class WaveSurface(TensorClass):
         return self.evaluate(x, y, t, order=0).height
 
 
-def directional_third_derivatives(omega, phase, kx, ky, amplitude, xy, t, axes):
+def directional_third_derivatives(sea: Harmonics, xy, t, axes):
     """η_vvv = −Σ a (k·v)³ sin ψ, the surface's third derivative (1/m²) along each unit ``axes`` ``[B, D, 2]``.
 
-    Args: components ``[B, K]``; one point ``xy`` ``[B, 2]`` (m) per sea; ``t`` ``[B]`` (s). Returns
+    Args: ``sea``'s components ``[B, K]``; one point ``xy`` ``[B, 2]`` (m) per sea; ``t`` ``[B]`` (s). Returns
     ``[B, D]``. It bounds the lensing at a caustic (docs/model.md §4.2).
     """
+    omega, phase, kx, ky, amplitude = sea
     psi = omega * t.unsqueeze(-1) + phase - kx * xy[:, :1] - ky * xy[:, 1:]
     along = kx.unsqueeze(1) * axes[..., :1] + ky.unsqueeze(1) * axes[..., 1:]  # [B, D, K]
     return -(amplitude.unsqueeze(1) * along**3 * torch.sin(psi).unsqueeze(1)).sum(-1)

@@ -22,7 +22,14 @@ drone's beacon, read at the transmitter through the same light reversed).
 
 from waterair.physics.channel.beacon import BEACON_POINTINGS, Beacon, BeaconReading, read_beacon
 from waterair.physics.channel.geometry import LinkGeometry, Transceiver, pointing
-from waterair.physics.channel.lattice import LATTICE_NODES, LATTICE_SPAN, TwoScale, lattice_shape, two_scale_light
+from waterair.physics.channel.lattice import (
+    LATTICE_NODES,
+    LATTICE_SPAN,
+    Lattice,
+    TwoScale,
+    lattice_shape,
+    two_scale_light,
+)
 from waterair.physics.channel.light import (
     LightSamples,
     Reception,
@@ -68,6 +75,7 @@ __all__ = [
     "ChannelModel",
     "CountingChannel",
     "FullChannel",
+    "Lattice",
     "LightSamples",
     "LinkEnds",
     "LinkGeometry",

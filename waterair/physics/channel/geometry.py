@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 import torch
 
 from waterair.core.validation import check_choice, check_range
-from waterair.physics.optics import N_AIR, N_WATER, WATER_ATTENUATION_PER_M, traced
+from waterair.physics.optics import N_AIR, N_WATER, WATER_ATTENUATION_PER_M, RefractiveIndices, traced
 
 
 @dataclass(frozen=True)
@@ -124,6 +124,11 @@ class Transceiver:
         if isinstance(divergence, torch.Tensor) and divergence.dim() == 1:
             return replace(self, divergence=divergence[index])  # type: ignore[arg-type]
         return self
+
+    @property
+    def indices(self) -> RefractiveIndices:
+        """The refractive indices either side of the surface."""
+        return RefractiveIndices(self.n_water, self.n_air)
 
     @property
     def attenuation_per_m(self) -> float:

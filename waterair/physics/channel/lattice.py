@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import torch
 
@@ -108,18 +109,17 @@ class TwoScale(ChannelModel):
         basis, blur = prepared["lattice_basis"], prepared["blur"]
 
         def lattice(at: torch.Tensor) -> LightSamples:
-            return two_scale_light(sea, ends.tx, ends.rx, time, at, basis, blur, self.optics, self.nodes, self.span)
+            grid = Lattice(at, basis, self.nodes, self.span)
+            return two_scale_light(sea, ends.tx, ends.rx, time, grid, blur, self.optics)
 
         if copies == 1:
             everywhere = lattice(centre)
         else:  # the lattice around the tracked point does not depend on the pointing: once per link
             links = centre.shape[0] // copies
-            *components, tx, rx, now, at, shape, spread = (
-                v[:links] for v in (*sea, ends.tx, ends.rx, time, centre, basis, blur)
-            )
-            sea_once = tuple(components)
-            once = two_scale_light(sea_once, tx, rx, now, at, shape, spread, self.optics, self.nodes, self.span)
-            everywhere = repeated(once, copies)
+            sea_once = Harmonics(*(v[:links] for v in sea))
+            tx, rx, now, at, shape, spread = (v[:links] for v in (ends.tx, ends.rx, time, centre, basis, blur))
+            grid = Lattice(at, shape, self.nodes, self.span)
+            everywhere = repeated(two_scale_light(sea_once, tx, rx, now, grid, spread, self.optics), copies)
         if ends.pointing is None:
             return everywhere
         shift = (prepared["lattice_pull"] @ (beam_aim(ends.tx, ends.pointing) - centre).unsqueeze(-1))[..., 0]
@@ -214,38 +214,46 @@ def lattice_shape(tx: torch.Tensor, rx: torch.Tensor, slope_covariance: torch.Te
     return vectors * torch.sqrt(values).unsqueeze(-2), blur, product @ spread
 
 
+class Lattice(NamedTuple):
+    """The nodes ``centre + basis · z`` of eq. (4.8)'s trapezoid rule: ``centre`` (x, y) ``[B, 2]`` (m), ``basis``
+    ``[B, 2, 2]`` (m, from :func:`lattice_shape`), and z on ``nodes`` × ``nodes`` points of half-width ``span``
+    (odd nodes put one on the centre)."""
+
+    centre: torch.Tensor
+    basis: torch.Tensor
+    nodes: int = LATTICE_NODES
+    span: float = LATTICE_SPAN
+
+
 def two_scale_light(
-    components: tuple[torch.Tensor, ...],
+    sea: Harmonics,
     tx: torch.Tensor,
     rx: torch.Tensor,
     time: torch.Tensor,
-    centre: torch.Tensor,
-    basis: torch.Tensor,
+    lattice: Lattice,
     blur: torch.Tensor,
     optics: Transceiver,
-    nodes: int = LATTICE_NODES,
-    span: float = LATTICE_SPAN,
 ) -> LightSamples:
-    """Eq. (4.8) on the lattice ``centre + basis · z`` as weighted rays (:class:`LightSamples`, N = nodes²).
+    """Eq. (4.8) on the ``lattice`` as weighted rays (:class:`LightSamples`, N = nodes²).
 
     Args:
-        components: the surface's (omega, phase, kx, ky, amplitude), each ``[B, K]``.
+        sea: the resolved surfaces, each component ``[B, K]``.
         tx, rx: T and R (m) ``[B, 3]``; time (s) ``[B]``.
-        centre: the lattice's centre (x, y) (m) ``[B, 2]``, the tracked refraction point.
-        basis, blur: from :func:`lattice_shape`.
-        optics: the transceiver. nodes, span: the lattice (odd nodes put one on the centre).
+        lattice: the nodes, centred on the tracked refraction point.
+        blur: from :func:`lattice_shape`.
+        optics: the transceiver.
 
     A pure tensor function (no data-dependent Python), so that it compiles into the step's graph.
     """
     batch, dtype = tx.shape[0], tx.dtype
+    centre, basis, nodes, span = lattice
     grid = torch.linspace(-span, span, nodes, dtype=dtype, device=tx.device)
     z = torch.stack(torch.meshgrid(grid, grid, indexing="ij"), dim=-1).reshape(-1, 2)  # [N, 2]
     xy = centre.unsqueeze(1) + torch.einsum("bij,nj->bni", basis, z)
-    omega, phase, kx, ky, amplitude = components
     if torch.compiler.is_compiling():  # inductor recomputes the factors' sines in every consumer: slower than direct
-        height, slope_x, slope_y = harmonic_sums(omega, phase, kx, ky, amplitude, xy[..., 0], xy[..., 1], time, 1)
+        height, slope_x, slope_y = harmonic_sums(sea, xy[..., 0], xy[..., 1], time, 1)
     else:  # eager: 1 + 2n exponentials per harmonic, not n² (docs/benchmarks.md, "Lattice sums")
-        height, slope_x, slope_y = lattice_harmonic_sums(omega, phase, kx, ky, amplitude, centre, basis, grid, time, 1)
+        height, slope_x, slope_y = lattice_harmonic_sums(sea, centre, basis, grid, time, 1)
     point = torch.cat((xy, height.unsqueeze(-1)), dim=-1)
     d1, d2 = point - tx.unsqueeze(1), rx.unsqueeze(1) - point
     r1, r2 = torch.linalg.vector_norm(d1, dim=-1), torch.linalg.vector_norm(d2, dim=-1)

@@ -30,7 +30,7 @@ from waterair.physics.channel.facets import interception, slope_density
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
 from waterair.physics.channel.model import LinkEnds
-from waterair.physics.channel.montecarlo import MonteCarloLight, RayEstimate
+from waterair.physics.channel.montecarlo import MonteCarloLight, RayChunk, RayEstimate, RayRequest
 from waterair.physics.channel.rays import FEWEST_ITERATIONS, departures, surface_hits
 from waterair.physics.optics import per_link, transverse_frame, water_transmittance
 from waterair.physics.surface import Harmonics
@@ -132,9 +132,8 @@ class LocalEstimate(RayEstimate):
         generator: torch.Generator | None,
     ) -> MonteCarloLight:
         """The samples with the rays they came from (for :func:`.montecarlo.standard_error`); as :meth:`light`."""
-        tx, rx = ends.tx, ends.rx
-        keys = self.proposal(ends, generator)
-        return local_estimate(sea, unresolved, tx, rx, time, self.optics, rays=self.rays, points=self.points, **keys)
+        request = self.request(ends, generator, self.rays, self.points)
+        return local_estimate(sea, unresolved, ends.tx, ends.rx, time, self.optics, request)
 
 
 def local_estimate(
@@ -144,31 +143,22 @@ def local_estimate(
     rx: torch.Tensor,
     t: float | torch.Tensor,
     optics: Transceiver,
-    *,
-    axis: torch.Tensor,
-    reference: torch.Tensor,
-    width: float,
-    rays: int,
-    points: int,
-    generator: torch.Generator,
-    memory: int = 2**23,
+    request: RayRequest,
 ) -> MonteCarloLight:
-    """``rays`` rays per link from ``tx``, each sent to ``points`` aperture points: ``[B, rays · points]`` samples.
+    """``request.rays`` rays per link from ``tx``, each sent to ``request.per_ray`` aperture points:
+    ``[B, rays · points]`` samples.
 
     Args:
         sea: the resolved surfaces of B seas; unresolved: their slope covariance Σ ``[B, 3]`` (positive).
         tx, rx: T and R (m) ``[B, 3]``; t: time (s), a float or ``[B]``.
         optics: transceiver (attenuation, indices, aperture diameter).
-        axis: unit centre of the proposal ``[B, 3]`` (up); width: its standard deviation per axis (rad).
-        reference: unit normal ``[B, 3]`` of the aperture disk at R (e.g. the calm-sea arrival).
-        rays, points: surface rays per link and aperture points per ray.
-        generator: where the random numbers come from (its device is where they are drawn).
-        memory: elements of one [B, rays, K] surface evaluation: rays are traced in chunks under it.
+        request: the proposal, the rays and points, and the aperture disk's normal at R (:class:`RayRequest`).
     """
     batch, dtype, device = tx.shape[0], tx.dtype, tx.device
-    chunk = max(16, memory // (batch * sea.omega.shape[-1]))
-    e1, e2 = transverse_frame(axis)
-    a1, a2 = transverse_frame(reference)
+    rays, points, width, generator = request.rays, request.per_ray, request.width, request.generator
+    chunk = max(16, request.memory // (batch * sea.omega.shape[-1]))
+    frame = transverse_frame(request.axis)
+    a1, a2 = transverse_frame(request.reference)
     radius = optics.aperture_diameter / 2.0
     pieces = []
     for start in range(0, rays, chunk):
@@ -182,7 +172,7 @@ def local_estimate(
             -1
         ) * a2[:, None, None, :]
         target = rx[:, None, None, :] + offset
-        pieces.append(_estimate_chunk(sea, tx, t, optics, axis, e1, e2, tangent, width, target, unresolved, start))
+        pieces.append(_estimate_chunk(sea, tx, t, optics, request, RayChunk(start, tangent, frame, target), unresolved))
     weight, departure, arrival, ray = (torch.cat(part, dim=1) for part in zip(*pieces, strict=True))
     light = LightSamples(
         weight=weight / (rays * points), departure=departure, arrival=arrival, batch_size=[batch, rays * points]
@@ -191,10 +181,11 @@ def local_estimate(
     return MonteCarloLight(light=light, ray=ray, rays=counts, batch_size=[batch])
 
 
-def _estimate_chunk(sea, tx, t, optics, axis, e1, e2, tangent, width, target, unresolved, start):
+def _estimate_chunk(sea, tx, t, optics: Transceiver, request: RayRequest, chunk: RayChunk, unresolved):
     """One chunk of rays: (weight, departure, arrival, ray index), each ``[B, count · points, ·]``."""
+    start, target = chunk.start, chunk.draws
     batch, count, points = target.shape[:3]
-    direction, proposal = departures(axis, e1, e2, tangent, width)
+    direction, proposal = departures(request.axis, *chunk.frame, chunk.tangent, request.width)
     point, resolved, distance = surface_hits(sea, tx, direction, t, FEWEST_ITERATIONS)
     toward = target - point.unsqueeze(2)
     reach = torch.linalg.vector_norm(toward, dim=-1)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import torch
 from tensordict import TensorClass
@@ -50,6 +51,35 @@ class MonteCarloLight(TensorClass):
     light: LightSamples
     ray: torch.Tensor
     rays: torch.Tensor
+
+
+@dataclass(frozen=True)
+class RayRequest:
+    """What a Monte Carlo estimate is asked for: ``rays`` surface rays per link from a Gaussian proposal of
+    standard deviation ``width`` (rad) per axis around the unit ``axis`` ``[B, 3]`` (up), ``per_ray`` draws for
+    each (the counting tracer's facets, the local estimate's aperture points), the light read across the unit
+    ``reference`` ``[B, 3]`` at R (the counting plane's normal, the aperture disk's), random numbers from
+    ``generator`` (its device is where they are drawn), rays traced in chunks under ``memory`` elements of one
+    ``[B, rays, K]`` surface evaluation. The proposal must cover every pointing the hits are weighted for."""
+
+    axis: torch.Tensor
+    reference: torch.Tensor
+    width: float | torch.Tensor
+    rays: int
+    per_ray: int
+    generator: torch.Generator
+    memory: int = 2**23
+
+
+class RayChunk(NamedTuple):
+    """One chunk of a request's rays: the index of its first ray, their offsets ``tangent`` ``[B, n, 2]`` (rad)
+    around the axis in its ``frame`` (e1, e2), and the ``draws`` ``[B, n, per_ray, ·]`` of each ray (facet
+    slopes, or aperture points (m))."""
+
+    start: int
+    tangent: torch.Tensor
+    frame: tuple[torch.Tensor, torch.Tensor]
+    draws: torch.Tensor
 
 
 @dataclass(frozen=True)
@@ -95,18 +125,21 @@ class RayEstimate(ChannelModel):
         """The samples with the rays they came from (for :func:`standard_error`); arguments as :meth:`light`."""
         raise NotImplementedError
 
-    def proposal(self, ends: LinkEnds, generator: torch.Generator | None) -> dict:
-        """The keywords every estimate takes from the ends: the proposal's ``axis`` (the calm-sea departure) and
-        ``width`` (rad), the aperture's ``reference`` normal (the calm-sea arrival), and the ``generator``."""
+    def request(self, ends: LinkEnds, generator: torch.Generator | None, rays: int, per_ray: int) -> RayRequest:
+        """What every estimate takes from the ends: the proposal's ``axis`` (the calm-sea departure) and ``width``
+        (rad), the aperture's ``reference`` normal (the calm-sea arrival), with ``rays``, ``per_ray`` and the
+        ``generator``."""
         if generator is None:
             raise ValueError(f"the {type(self).__name__} channel draws its rays from a generator; pass one")
         tx, rx, calm = ends.tx, ends.rx, ends.calm_point
-        return {
-            "axis": unit_vector(calm - tx),
-            "reference": unit_vector(rx - calm),
-            "width": self.proposal_beams * beam_divergence(self.optics.divergence, self.optics.wavelength),
-            "generator": generator,
-        }
+        return RayRequest(
+            axis=unit_vector(calm - tx),
+            reference=unit_vector(rx - calm),
+            width=self.proposal_beams * beam_divergence(self.optics.divergence, self.optics.wavelength),
+            rays=rays,
+            per_ray=per_ray,
+            generator=generator,
+        )
 
 
 @dataclass(frozen=True)
@@ -146,9 +179,8 @@ class MonteCarlo(RayEstimate):
         generator: torch.Generator | None,
     ) -> MonteCarloLight:
         """The hits with the rays they came from (for :func:`standard_error`); arguments as :meth:`light`."""
-        tx, rx = ends.tx, ends.rx
-        keys = self.proposal(ends, generator)
-        return trace(sea, unresolved, tx, rx, time, self.optics, rays=self.rays, facets=self.facets, **keys)
+        request = self.request(ends, generator, self.rays, self.facets)
+        return trace(sea, unresolved, ends.tx, ends.rx, time, self.optics, request)
 
 
 def trace(
@@ -158,32 +190,22 @@ def trace(
     rx: torch.Tensor,
     t: float | torch.Tensor,
     optics: Transceiver,
-    *,
-    axis: torch.Tensor,
-    reference: torch.Tensor,
-    width: float,
-    rays: int,
-    facets: int,
-    generator: torch.Generator,
-    memory: int = 2**23,
+    request: RayRequest,
 ) -> MonteCarloLight:
-    """Trace ``rays`` rays per link from ``tx`` toward the surface, ``facets`` facet draws each.
+    """Trace ``request.rays`` rays per link from ``tx`` toward the surface, ``request.per_ray`` facet draws each.
 
     Args:
         sea: the resolved surfaces of B seas; unresolved: their slope covariance ``[B, 3]``, which tilts
             the facets (zero: the resolved surface only).
         tx, rx: T and R (m) ``[B, 3]``; t: time (s), a float or ``[B]``.
         optics: transceiver (attenuation, indices, aperture diameter).
-        axis: unit centre of the proposal ``[B, 3]`` (up); width: its standard deviation per axis
-            (rad). It must cover every pointing the hits are weighted for (a few beam widths).
-        reference: unit normal ``[B, 3]`` of the counting plane through R (e.g. the calm-sea arrival).
-        rays, facets: surface rays per link and facet draws per ray.
-        generator: where the random numbers come from (its device is where they are drawn).
-        memory: elements of one [B, rays, K] surface evaluation: rays are traced in chunks under it.
+        request: the proposal (a few beam widths), the rays and facets, and the counting plane through R
+            (:class:`RayRequest`).
     """
     batch, dtype, device = tx.shape[0], tx.dtype, tx.device
-    chunk = max(16, memory // (batch * sea.omega.shape[-1]))
-    e1, e2 = transverse_frame(axis)
+    rays, facets, width, generator = request.rays, request.per_ray, request.width, request.generator
+    chunk = max(16, request.memory // (batch * sea.omega.shape[-1]))
+    frame = transverse_frame(request.axis)
     covariance = unresolved.to(torch.float64)
     xx, xy, yy = covariance.unbind(-1)
     jitter = 1e-30
@@ -192,7 +214,6 @@ def trace(
     l22 = torch.sqrt((yy - l21**2).clamp(min=0.0) + jitter)
     cholesky = torch.stack((torch.stack((l11, torch.zeros_like(l11)), -1), torch.stack((l21, l22), -1)), -2)
     cholesky = torch.where((covariance.abs().sum(-1) > 0)[:, None, None], cholesky, torch.zeros_like(cholesky))
-    area = math.pi * optics.aperture_diameter**2 / 4.0
     pieces = []
     for start in range(0, rays, chunk):
         count = min(chunk, rays - start)
@@ -201,9 +222,7 @@ def trace(
         tilt = torch.randn(batch, count, facets, 2, generator=generator, dtype=torch.float64, device=generator.device)
         tangent, tilt = tangent.to(device=device, dtype=dtype), tilt.to(device=device)
         facet_slopes = torch.einsum("bij,bnmj->bnmi", cholesky.to(device), tilt).to(dtype)
-        pieces.append(
-            _trace_chunk(sea, tx, rx, t, optics, axis, e1, e2, reference, tangent, width, facet_slopes, start, area)
-        )
+        pieces.append(_trace_chunk(sea, tx, rx, t, optics, request, RayChunk(start, tangent, frame, facet_slopes)))
     weight, departure, arrival, ray = (torch.cat(part, dim=1) for part in zip(*pieces, strict=True))
     weight = weight / (rays * facets)
     keep = weight > 0
@@ -237,10 +256,12 @@ def standard_error(result: MonteCarloLight, tx_dir: torch.Tensor, rx_dir: torch.
     return gain, per_ray.std(1) / math.sqrt(rays)
 
 
-def _trace_chunk(sea, tx, rx, t, optics, axis, e1, e2, reference, tangent, width, facet_slopes, start, area):
+def _trace_chunk(sea, tx, rx, t, optics: Transceiver, request: RayRequest, chunk: RayChunk):
     """One chunk of rays: (weight, departure, arrival, ray index), each ``[B, count · facets, ·]``."""
+    start, facet_slopes, reference = chunk.start, chunk.draws, request.reference
     batch, count, facets = facet_slopes.shape[:3]
-    direction, proposal = departures(axis, e1, e2, tangent, width)
+    area = math.pi * optics.aperture_diameter**2 / 4.0
+    direction, proposal = departures(request.axis, *chunk.frame, chunk.tangent, request.width)
     point, resolved, distance = surface_hits(sea, tx, direction, t)
     # facets: the resolved slope plus each draw of the unresolved one
     slope = resolved.unsqueeze(2) + facet_slopes

@@ -61,8 +61,8 @@ class RayTube(ChannelModel):
         copies: int = 1,
     ) -> LightSamples:
         optics, xy = self.optics, path.point[:, :2]
-        _, _, hessian, _, _ = fermat_terms(*sea, xy, time, ends.tx, ends.rx, optics.n_water, optics.n_air)
-        third = directional_third_derivatives(*sea, xy, time, hessian_eigenvectors(hessian))
+        hessian = fermat_terms(sea, xy, time, ends.tx, ends.rx, optics.n_water, optics.n_air).hess
+        third = directional_third_derivatives(sea, xy, time, hessian_eigenvectors(hessian))
         slope = -path.normal[:, :2] / path.normal[:, 2:]
         return ray_tube_light(path.point, slope, hessian, path.valid, ends.tx, ends.rx, optics, third)
 

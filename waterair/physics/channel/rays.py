@@ -53,11 +53,11 @@ def surface_hits(
     for _ in range(iterations):
         x = tx[:, 0:1] + distance * direction[..., 0]
         y = tx[:, 1:2] + distance * direction[..., 1]
-        height, slope_x, slope_y = harmonic_sums(*sea, x, y, time, 1)
+        height, slope_x, slope_y = harmonic_sums(sea, x, y, time, 1)
         residual = tx[:, 2:3] + distance * direction[..., 2] - height
         rate = direction[..., 2] - slope_x * direction[..., 0] - slope_y * direction[..., 1]
         distance = distance - residual / rate
     x = tx[:, 0:1] + distance * direction[..., 0]
     y = tx[:, 1:2] + distance * direction[..., 1]
-    height, slope_x, slope_y = harmonic_sums(*sea, x, y, time, 1)
+    height, slope_x, slope_y = harmonic_sums(sea, x, y, time, 1)
     return torch.stack((x, y, height), dim=-1), torch.stack((slope_x, slope_y), dim=-1), distance

@@ -11,13 +11,15 @@ its cost is the number of starts times the iterations.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import torch
 from tensordict import TensorClass
 
-from waterair.physics.optics import N_AIR, N_WATER, angle_between, critical_angle
+from waterair.physics.optics import WATER_AIR, RefractiveIndices, angle_between, critical_angle
 from waterair.physics.paths.newton import fermat_terms
-from waterair.physics.surface import WaveSurface
+from waterair.physics.paths.solution import PathProblem
+from waterair.physics.surface import Harmonics, WaveSurface
 
 MERGE_DISTANCE = 1e-4
 """Two converged starts closer than this (m) are the same refraction point."""
@@ -44,6 +46,23 @@ class RefractionPoints(TensorClass):
         return self.valid.sum(-1)
 
 
+@dataclass(frozen=True)
+class CensusOptions:
+    """Settings of the census.
+
+    Attributes:
+        spacing: distance between starts on the surface (m); it must be below the shortest resolved
+            wavelength's quarter for a full census.
+        iterations: Newton steps from each start; ``max_step`` caps each step (m).
+        chunk: starts × harmonics evaluated at once (memory).
+    """
+
+    spacing: float = 0.05
+    iterations: int = 30
+    max_step: float = 0.1
+    chunk: int = 2**22
+
+
 def refraction_points(
     surface: WaveSurface,
     tx: torch.Tensor,
@@ -52,12 +71,8 @@ def refraction_points(
     axis: torch.Tensor,
     reach: float,
     *,
-    spacing: float = 0.05,
-    iterations: int = 30,
-    max_step: float = 0.1,
-    n_water: float = N_WATER,
-    n_air: float = N_AIR,
-    chunk: int = 2**22,
+    indices: RefractiveIndices = WATER_AIR,
+    options: CensusOptions | None = None,
 ) -> RefractionPoints:
     """All refraction points of each link whose departure lies within ``reach`` (rad) of ``axis``.
 
@@ -67,72 +82,60 @@ def refraction_points(
         t: time (s).
         axis: unit transmitter axis ``[B, 3]`` (pointing up).
         reach: half-angle of the beam's reach around ``axis`` (rad), e.g. 3 ω_D.
-        spacing: distance between starts on the surface (m); it must be below the shortest resolved
-            wavelength's quarter for a full census.
-        iterations: Newton steps from each start; ``max_step`` caps each step (m).
-        chunk: starts × harmonics evaluated at once (memory).
+        indices: the refractive indices either side of the surface.
+        options: the starts' spacing, the Newton steps and the memory (:class:`CensusOptions`; None: its defaults).
     """
+    options = options or CensusOptions()
     batch, dtype, device = tx.shape[0], tx.dtype, tx.device
+    spacing = options.spacing
     centre = tx + (-tx[:, 2:] / axis[:, 2:]) * axis  # where the axis meets z = 0
     radius = float((-tx[:, 2] / axis[:, 2]).max()) * math.tan(reach) + 2 * spacing
     line = torch.arange(-radius, radius + spacing / 2, spacing, dtype=dtype, device=device)
     grid = torch.stack(torch.meshgrid(line, line, indexing="ij"), -1).reshape(-1, 2)
     grid = grid[torch.linalg.vector_norm(grid, dim=-1) <= radius]
     starts = grid.shape[0]
-    per_chunk = max(1, chunk // max(1, starts * surface.num_harmonics))
+    per_chunk = max(1, options.chunk // max(1, starts * surface.num_harmonics))
+    problem = PathProblem(surface, tx, rx, t, indices)
     rows = []
     for first in range(0, batch, per_chunk):
-        last = min(batch, first + per_chunk)
-        rows.append(
-            _newton_all(
-                surface[first:last],
-                tx[first:last],
-                rx[first:last],
-                centre[first:last, :2],
-                grid,
-                t,
-                iterations,
-                max_step,
-                n_water,
-                n_air,
-            )
-        )
+        links = slice(first, min(batch, first + per_chunk))
+        rows.append(_newton_all(problem.rows(links), centre[links, :2], grid, options))
     xy, slope, hessian, point, converged = (torch.cat(parts, 0) for parts in zip(*rows, strict=True))
     departure = (point - tx.unsqueeze(1)) / torch.linalg.vector_norm(point - tx.unsqueeze(1), dim=-1, keepdim=True)
     normal = torch.cat((-slope, torch.ones_like(slope[..., :1])), -1)
     normal = normal / torch.linalg.vector_norm(normal, dim=-1, keepdim=True)
     theta1 = angle_between(departure, normal)
     within = angle_between(departure, axis.unsqueeze(1).expand_as(departure)) <= reach
-    keep = converged & within & (theta1 < critical_angle(n_water, n_air)) & torch.isfinite(point).all(-1)
+    keep = converged & within & (theta1 < critical_angle(*indices)) & torch.isfinite(point).all(-1)
     return _merge(xy, slope, hessian, point, departure, theta1, keep)
 
 
-def _newton_all(surface, tx, rx, centre, grid, t, iterations, max_step, n_w, n_a):
+def _newton_all(problem: PathProblem, centre, grid, options: CensusOptions):
     """Plain Newton on ∇L = 0 from ``centre + grid``: (xy, slope, hessian, P, converged), each ``[b, S, ·]``."""
+    tx, rx = problem.tx, problem.rx
     batch, starts = tx.shape[0], grid.shape[0]
     xy = (centre.unsqueeze(1) + grid.unsqueeze(0)).reshape(-1, 2)
-    parts = [v.repeat_interleave(starts, 0) for v in (surface.omega, surface.phase, surface.kx, surface.ky)]
-    amplitude = surface.amplitude.repeat_interleave(starts, 0)
-    time = torch.full((batch * starts,), float(t), dtype=tx.dtype, device=tx.device)
+    sea = Harmonics(*(v.repeat_interleave(starts, 0) for v in problem.surface.harmonics))
+    time = torch.full((batch * starts,), float(problem.t), dtype=tx.dtype, device=tx.device)
     tx_rows, rx_rows = tx.repeat_interleave(starts, 0), rx.repeat_interleave(starts, 0)
     tol = 1e-9 if tx.dtype == torch.float64 else 2e-5
-    for _ in range(iterations):
-        _, grad, hess, _, _ = fermat_terms(*parts, amplitude, xy, time, tx_rows, rx_rows, n_w, n_a)
-        hxx, hxy, hyy = hess.unbind(-1)
+    for _ in range(options.iterations):
+        terms = fermat_terms(sea, xy, time, tx_rows, rx_rows, *problem.indices)
+        hxx, hxy, hyy = terms.hess.unbind(-1)
         det = hxx * hyy - hxy**2
         safe = torch.where(det.abs() > 1e-12, det, torch.full_like(det, 1e-12))
-        gx, gy = grad.unbind(-1)
+        gx, gy = terms.grad.unbind(-1)
         step = -torch.stack((hyy * gx - hxy * gy, hxx * gy - hxy * gx), -1) / safe[:, None]
         length = torch.linalg.vector_norm(step, dim=-1, keepdim=True)
-        xy = xy + step * (max_step / length.clamp(min=max_step))
-    _, grad, hess, point, slope = fermat_terms(*parts, amplitude, xy, time, tx_rows, rx_rows, n_w, n_a)
-    converged = torch.linalg.vector_norm(grad, dim=-1) < tol
+        xy = xy + step * (options.max_step / length.clamp(min=options.max_step))
+    terms = fermat_terms(sea, xy, time, tx_rows, rx_rows, *problem.indices)
+    converged = torch.linalg.vector_norm(terms.grad, dim=-1) < tol
     shape = (batch, starts)
     return (
         xy.reshape(*shape, 2),
-        slope.reshape(*shape, 2),
-        hess.reshape(*shape, 3),
-        point.reshape(*shape, 3),
+        terms.slope.reshape(*shape, 2),
+        terms.hess.reshape(*shape, 3),
+        terms.point.reshape(*shape, 3),
         converged.reshape(shape),
     )
 

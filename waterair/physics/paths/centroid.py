@@ -9,7 +9,7 @@ import torch
 
 from waterair.core.validation import check_int, check_range
 from waterair.physics.optics import refract, unit_vector
-from waterair.physics.paths.solution import PathSolution, finish_path
+from waterair.physics.paths.solution import PathProblem, PathSolution, finish_path
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,7 @@ class CentroidOptions:
         check_range("max_miss", self.max_miss, 0.0, low_open=True, unit="m")
 
 
-def solve_centroid(surface, tx, rx, t, init, n_w, n_a, opts: CentroidOptions, compiled: bool = False) -> PathSolution:
+def solve_centroid(problem: PathProblem, init, opts: CentroidOptions, compiled: bool = False) -> PathSolution:
     """The paper's screen method with the corrected centroid (docs/model.md §3, solver 2).
 
     A virtual screen at unit distance in front of the receiver, centred on the current direction
@@ -65,6 +65,8 @@ def solve_centroid(surface, tx, rx, t, init, n_w, n_a, opts: CentroidOptions, co
     surface curvature stretches the screen-to-miss map anisotropically. A fixed-width Gaussian
     either covers the whole screen (centroid pulled to the centre) or no pixel at all.
     """
+    surface, tx, rx, t = problem.surface, problem.tx, problem.rx, problem.t
+    n_w, n_a = problem.indices
     batch, dtype, device = tx.shape[0], tx.dtype, tx.device
     start = torch.cat((init, torch.zeros_like(init[:, :1])), dim=-1)
     centre = unit_vector(start - rx)

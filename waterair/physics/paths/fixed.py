@@ -15,7 +15,7 @@ have not converged to the adaptive solver, which finishes them from where they s
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import torch
 
@@ -27,7 +27,8 @@ from waterair.physics.paths.newton import (
     iterate_newton,
     newton_direction,
 )
-from waterair.physics.paths.solution import PathSolution, finish_path
+from waterair.physics.paths.solution import Iterate, PathProblem, PathSolution
+from waterair.physics.surface import Harmonics
 
 
 @dataclass(frozen=True)
@@ -60,40 +61,38 @@ class FixedNewtonOptions:
         return self.tol if self.tol is not None else (1e-11 if dtype == torch.float64 else 2e-5)
 
 
-def fixed_newton_terms(
-    omega, phase, kx, ky, amplitude, xy, t, tx, rx, n_w: float, n_a: float, iterations: int, tol, armijo, max_step
-):
-    """``iterations`` masked Newton iterations from ``xy`` ``[m, 2]``; a pure tensor function.
+def fixed_newton_terms(sea: Harmonics, xy, t, tx, rx, n_w: float, n_a: float, opts: FixedNewtonOptions) -> Iterate:
+    """``opts.iterations`` masked Newton iterations from ``xy`` ``[m, 2]``; a pure tensor function.
 
-    Arguments as in :func:`waterair.physics.paths.newton.fermat_terms`, ``t`` ``[m]``. Returns
-    (P ``[m, 3]``, (η_x, η_y) ``[m, 2]``, the final (x, y) ``[m, 2]``, converged ``[m]`` bool,
-    iterations taken ``[m]`` int64).
+    Arguments as in :func:`waterair.physics.paths.newton.fermat_terms`, ``t`` ``[m]``; the convergence threshold
+    is ``opts.tolerance`` of ``xy``'s dtype.
     """
     eps = torch.finfo(xy.dtype).eps
-    length, grad, hess, point, slope = fermat_terms(omega, phase, kx, ky, amplitude, xy, t, tx, rx, n_w, n_a)
+    tol, armijo, max_step = opts.tolerance(xy.dtype), opts.armijo, opts.max_step
+    length, grad, hess, point, slope = fermat_terms(sea, xy, t, tx, rx, n_w, n_a)
     done = torch.linalg.vector_norm(grad, dim=-1) < tol
     fraction = torch.ones_like(length)
     taken = torch.zeros_like(length, dtype=torch.int64)
-    for _ in range(iterations):
+    for _ in range(opts.iterations):
         todo = ~done
         step = newton_direction(hess, grad, point, tx, rx, n_w, n_a, max_step) * (fraction * todo).unsqueeze(-1)
         decrease = (grad * step).sum(-1)
         trial_xy = xy + step
-        trial = fermat_terms(omega, phase, kx, ky, amplitude, trial_xy, t, tx, rx, n_w, n_a)
+        trial = fermat_terms(sea, trial_xy, t, tx, rx, n_w, n_a)
         # Below the rounding level of L the decrease test is meaningless: take the step.
         negligible = -decrease <= 16 * eps * length
-        accept = todo & (negligible | (trial[0] <= length + armijo * decrease))
+        accept = todo & (negligible | (trial.length <= length + armijo * decrease))
         keep = accept.unsqueeze(-1)
         xy = torch.where(keep, trial_xy, xy)
-        length = torch.where(accept, trial[0], length)
-        grad = torch.where(keep, trial[1], grad)
-        hess = torch.where(keep, trial[2], hess)
-        point = torch.where(keep, trial[3], point)
-        slope = torch.where(keep, trial[4], slope)
+        length = torch.where(accept, trial.length, length)
+        grad = torch.where(keep, trial.grad, grad)
+        hess = torch.where(keep, trial.hess, hess)
+        point = torch.where(keep, trial.point, point)
+        slope = torch.where(keep, trial.slope, slope)
         fraction = torch.where(accept | done, torch.ones_like(fraction), 0.5 * fraction)
         taken = taken + todo.long()
         done = torch.linalg.vector_norm(grad, dim=-1) < tol
-    return point, slope, xy, done, taken
+    return Iterate(point, slope, xy, done, taken)
 
 
 @functools.cache
@@ -102,49 +101,44 @@ def compiled_fixed_newton():
     return torch.compile(fixed_newton_terms, dynamic=True)
 
 
-def solve_newton_fixed(
-    surface, tx, rx, t, init, n_w, n_a, opts: FixedNewtonOptions, compiled: bool = False
-) -> PathSolution:
+def solve_newton_fixed(problem: PathProblem, init, opts: FixedNewtonOptions, compiled: bool = False) -> PathSolution:
     """The primary path from ``init`` ``[B, 2]`` (m); see :func:`waterair.physics.paths.solve_path`."""
-    batch, dtype = tx.shape[0], tx.dtype
-    time = torch.as_tensor(t, dtype=dtype, device=tx.device).expand(batch).contiguous()
-    point, slope, xy, done, taken = iterate_fixed(surface, tx, rx, time, init.to(dtype), n_w, n_a, opts, compiled)
+    batch, dtype = problem.tx.shape[0], problem.tx.dtype
+    time = torch.as_tensor(problem.t, dtype=dtype, device=problem.tx.device).expand(batch).contiguous()
+    problem = replace(problem, t=time)
+    stop = iterate_fixed(problem, init.to(dtype), opts, compiled)
     if opts.finish:
-        point, slope, done, taken = finish_unconverged(
-            point, slope, xy, done, taken, surface, tx, rx, time, n_w, n_a, opts, compiled
-        )
-    return finish_path(point, slope, tx, rx, done, taken, n_w, n_a)
+        stop = finish_unconverged(problem, stop, opts, compiled)
+    return problem.path(stop)
 
 
-def iterate_fixed(surface, tx, rx, time, xy, n_w, n_a, opts: FixedNewtonOptions, compiled: bool):
-    """:func:`fixed_newton_terms` on ``surface`` (``time`` ``[B]``), compiled or eagerly."""
-    inputs = (surface.omega, surface.phase, surface.kx, surface.ky, surface.amplitude, xy, time, tx, rx)
-    settings = (n_w, n_a, opts.iterations, opts.tolerance(tx.dtype), opts.armijo, opts.max_step)
+def iterate_fixed(problem: PathProblem, xy, opts: FixedNewtonOptions, compiled: bool) -> Iterate:
+    """:func:`fixed_newton_terms` on ``problem``'s paths (its time ``[B]``) from ``xy`` ``[B, 2]``, compiled or
+    eagerly."""
+    inputs = (xy, torch.as_tensor(problem.t), problem.tx, problem.rx)
     if not compiled:
-        return fixed_newton_terms(*inputs, *settings)
-    return call_compiled(compiled_fixed_newton(), inputs, *settings)
+        return fixed_newton_terms(problem.surface.harmonics, *inputs, *problem.indices, opts)
+    return call_compiled(compiled_fixed_newton(), problem.surface.harmonics, inputs, *problem.indices, opts)
 
 
-def finish_unconverged(point, slope, xy, done, taken, surface, tx, rx, time, n_w, n_a, opts, compiled: bool):
-    """Finish the links that have not converged (``done`` False), from where they stopped at ``xy``.
+def finish_unconverged(problem: PathProblem, stop: Iterate, opts: FixedNewtonOptions, compiled: bool) -> Iterate:
+    """Finish the paths of ``problem`` (its time ``[B]``) whose iterations ``stop``ped unconverged, from there.
 
     They are gathered and take ``opts.iterations`` more masked iterations, then the adaptive solver
     (:mod:`.newton`) takes the very few still left. One host synchronisation per stage: whether any
-    link is left. Returns the updated (point, slope, done, taken).
+    link is left. Returns the updated iterate (its ``xy`` where the iterations of each path stopped).
     """
-    left = (~done).nonzero().squeeze(-1)
+    left = (~stop.converged).nonzero().squeeze(-1)
     if left.numel() == 0:
-        return point, slope, done, taken
-    point, slope, done, taken = point.clone(), slope.clone(), done.clone(), taken.clone()
-    sub = surface[left], tx[left], rx[left], time[left]
-    p, s, sub_xy, d, k = iterate_fixed(*sub, xy[left], n_w, n_a, opts, compiled)
+        return stop
+    point, slope, xy, done, taken = (v.clone() for v in stop)
+    sub = problem.rows(left)
+    p, s, sub_xy, d, k = iterate_fixed(sub, stop.xy[left], opts, compiled)
     still = (~d).nonzero().squeeze(-1)
     if still.numel():
         adaptive = NewtonOptions(tol=opts.tol, armijo=opts.armijo, max_step=opts.max_step)
-        sub_surface, sub_tx, sub_rx, sub_time = (v[still] for v in sub)
-        p[still], s[still], d[still], more = iterate_newton(
-            sub_surface, sub_tx, sub_rx, sub_time, sub_xy[still], n_w, n_a, adaptive, compiled
-        )
-        k[still] += more
-    point[left], slope[left], done[left], taken[left] = p, s, d, taken[left] + k
-    return point, slope, done, taken
+        more = iterate_newton(sub.rows(still), sub_xy[still], adaptive, compiled)
+        p[still], s[still], sub_xy[still], d[still] = more.point, more.slope, more.xy, more.converged
+        k[still] += more.iterations
+    point[left], slope[left], xy[left], done[left], taken[left] = p, s, sub_xy, d, taken[left] + k
+    return Iterate(point, slope, xy, done, taken)

@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import torch
 
 from waterair.core.validation import check_int, check_range
-from waterair.physics.paths.solution import PathSolution, finish_path
-from waterair.physics.surface import harmonic_sums
+from waterair.physics.paths.solution import Iterate, PathProblem, PathSolution
+from waterair.physics.surface import Harmonics, harmonic_sums
 
 
 @dataclass(frozen=True)
@@ -50,9 +51,9 @@ class NewtonOptions:
         check_range("max_step", self.max_step, 0.0, low_open=True, unit="m")
 
 
-@dataclass
-class _Fermat:
-    """L, ∇L, ∇²L and the geometry at a batch of surface points (all leading shape ``[m]``)."""
+class FermatTerms(NamedTuple):
+    """L (m), ∇L ``[m, 2]``, ∇²L as (L_xx, L_xy, L_yy) ``[m, 3]`` (1/m), the surface point P ``[m, 3]`` (m) and
+    its slopes (η_x, η_y) ``[m, 2]`` at a batch of surface points (:func:`fermat_terms`)."""
 
     length: torch.Tensor
     grad: torch.Tensor
@@ -60,21 +61,21 @@ class _Fermat:
     point: torch.Tensor
     slope: torch.Tensor
 
-    def select(self, index: torch.Tensor) -> _Fermat:
-        return _Fermat(*(getattr(self, f)[index] for f in ("length", "grad", "hess", "point", "slope")))
+    def select(self, index: torch.Tensor) -> FermatTerms:
+        return FermatTerms(*(v[index] for v in self))
 
-    def assign(self, index: torch.Tensor, other: _Fermat) -> None:
-        for f in ("length", "grad", "hess", "point", "slope"):
-            getattr(self, f)[index] = getattr(other, f)
+    def assign(self, index: torch.Tensor, other: FermatTerms) -> None:
+        for mine, theirs in zip(self, other, strict=True):
+            mine[index] = theirs
 
 
-def _fermat(surface, xy, t, tx, rx, n_w, n_a, compiled: bool) -> _Fermat:
-    """L, ∇L and ∇²L at surface points ``xy`` ``[m, 2]`` (see :func:`fermat_terms`)."""
-    time = torch.as_tensor(t, dtype=xy.dtype, device=xy.device).expand(xy.shape[0]).contiguous()
-    inputs = (surface.omega, surface.phase, surface.kx, surface.ky, surface.amplitude, xy, time, tx, rx)
+def _fermat(problem: PathProblem, xy: torch.Tensor, compiled: bool) -> FermatTerms:
+    """L, ∇L and ∇²L at surface points ``xy`` ``[m, 2]`` of ``problem``'s paths (see :func:`fermat_terms`)."""
+    time = torch.as_tensor(problem.t, dtype=xy.dtype, device=xy.device).expand(xy.shape[0]).contiguous()
+    sea, ends = problem.surface.harmonics, (xy, time, problem.tx, problem.rx)
     if not compiled:
-        return _Fermat(*fermat_terms(*inputs, n_w, n_a))
-    return _Fermat(*call_compiled(_compiled_fermat(), inputs, n_w, n_a))
+        return fermat_terms(sea, *ends, *problem.indices)
+    return call_compiled(_compiled_fermat(), sea, ends, *problem.indices)
 
 
 MIN_COMPILED_ROWS = 4
@@ -83,9 +84,9 @@ fixed size of the inputs (2 for (x, y), 3 for a position) shares its symbol and 
 set of one, two or three links would compile the kernel again, for that size only (~10 s each on 2 cores)."""
 
 
-def call_compiled(kernel, inputs: tuple[torch.Tensor, ...], *settings):
-    """``kernel(*inputs, *settings)`` for a compiled path kernel with dynamic shapes, its outputs ``[m, ...]``
-    for inputs of ``m`` rows, so that it keeps one graph whatever ``m`` is.
+def call_compiled(kernel, sea: Harmonics, inputs: tuple[torch.Tensor, ...], *settings):
+    """``kernel(sea, *inputs, *settings)`` for a compiled path kernel with dynamic shapes, its outputs ``[m, ...]``
+    (a named tuple, as the kernel's) for inputs of ``m`` rows, so that it keeps one graph whatever ``m`` is.
 
     Fewer than :data:`MIN_COMPILED_ROWS` rows are repeated up to it (the extra rows' results dropped), and views
     are copied: torch guards a view's size against its base's, so a start point sliced from a wider tensor, then
@@ -94,22 +95,22 @@ def call_compiled(kernel, inputs: tuple[torch.Tensor, ...], *settings):
     rows = inputs[0].shape[0]
     if 0 < rows < MIN_COMPILED_ROWS:
         repeat = torch.arange(MIN_COMPILED_ROWS, device=inputs[0].device) % rows
-        outputs = kernel(*(v[repeat] for v in inputs), *settings)
-        return tuple(v[:rows] for v in outputs)
-    return kernel(*(v.clone() if v._is_view() else v for v in inputs), *settings)
+        outputs = kernel(Harmonics(*(v[repeat] for v in sea)), *(v[repeat] for v in inputs), *settings)
+        return type(outputs)(*(v[:rows] for v in outputs))
+    sea = Harmonics(*(v.clone() if v._is_view() else v for v in sea))
+    return kernel(sea, *(v.clone() if v._is_view() else v for v in inputs), *settings)
 
 
-def fermat_terms(omega, phase, kx, ky, amplitude, xy, t, tx, rx, n_w: float, n_a: float):
+def fermat_terms(sea: Harmonics, xy, t, tx, rx, n_w: float, n_a: float) -> FermatTerms:
     """Evaluate L(x, y), its gradient and Hessian (docs/model.md §3) in closed form.
 
     With u1 = (P − T)/r1, u2 = (R − P)/r2, w = n_w u1 − n_a u2 and the tangents P_x = (1, 0, η_x),
     P_y = (0, 1, η_y):  ∂L/∂a = w · P_a,  ∂²L/∂a∂b = Σ_i (n_i/r_i)[P_a·P_b − (u_i·P_a)(u_i·P_b)]
-    + w_z η_ab. A pure tensor function (surface components ``[m, K]``, ``xy`` ``[m, 2]``, ``t``
+    + w_z η_ab. A pure tensor function (the ``sea``'s components ``[m, K]``, ``xy`` ``[m, 2]``, ``t``
     ``[m]``, ``tx``/``rx`` ``[m, 3]``), so that ``torch.compile`` can fuse the surface sums and
-    this algebra into one kernel. Returns (L, ∇L ``[m, 2]``, (L_xx, L_xy, L_yy) ``[m, 3]``,
-    P ``[m, 3]``, (η_x, η_y) ``[m, 2]``).
+    this algebra into one kernel. Returns :class:`FermatTerms`.
     """
-    sums = harmonic_sums(omega, phase, kx, ky, amplitude, xy[:, :1], xy[:, 1:], t, 2)
+    sums = harmonic_sums(sea, xy[:, :1], xy[:, 1:], t, 2)
     eta, dx, dy, dxx, dxy, dyy = (v.squeeze(-1) for v in sums)
     point = torch.stack((xy[:, 0], xy[:, 1], eta), dim=-1)
     d1, d2 = point - tx, rx - point
@@ -124,7 +125,7 @@ def fermat_terms(omega, phase, kx, ky, amplitude, xy, t, tx, rx, n_w: float, n_a
     hxy = c1 * (dx * dy - u1a * u1b) + c2 * (dx * dy - u2a * u2b) + w[:, 2] * dxy
     hyy = c1 * (1 + dy**2 - u1b**2) + c2 * (1 + dy**2 - u2b**2) + w[:, 2] * dyy
     hess = torch.stack((hxx, hxy, hyy), dim=-1)
-    return n_w * r1 + n_a * r2, grad, hess, point, torch.stack((dx, dy), dim=-1)
+    return FermatTerms(n_w * r1 + n_a * r2, grad, hess, point, torch.stack((dx, dy), dim=-1))
 
 
 @functools.cache
@@ -152,29 +153,28 @@ def newton_direction(hess, grad, point, tx, rx, n_w, n_a, max_step: float) -> to
     return step * (max_step / length.clamp(min=max_step))
 
 
-def solve_newton(surface, tx, rx, t, init, n_w, n_a, opts: NewtonOptions, compiled: bool = False) -> PathSolution:
+def solve_newton(problem: PathProblem, init, opts: NewtonOptions, compiled: bool = False) -> PathSolution:
     """The primary path from the start points ``init`` ``[B, 2]`` (m); see :func:`waterair.physics.paths.solve_path`."""
-    point, slope, done, iterations = iterate_newton(surface, tx, rx, t, init, n_w, n_a, opts, compiled)
-    return finish_path(point, slope, tx, rx, done, iterations, n_w, n_a)
+    return problem.path(iterate_newton(problem, init, opts, compiled))
 
 
-def iterate_newton(surface, tx, rx, t, init, n_w, n_a, opts: NewtonOptions, compiled: bool = False):
-    """Adaptive Newton iterations from ``init``: (P ``[B, 3]``, slopes ``[B, 2]``, converged, iterations)."""
+def iterate_newton(problem: PathProblem, init, opts: NewtonOptions, compiled: bool = False) -> Iterate:
+    """Adaptive Newton iterations from ``init`` ``[B, 2]`` (m)."""
+    tx = problem.tx
     batch, dtype = tx.shape[0], tx.dtype
     tol = opts.tol if opts.tol is not None else (1e-11 if dtype == torch.float64 else 2e-5)
     eps = torch.finfo(dtype).eps
-    t_all = t if isinstance(t, torch.Tensor) and t.dim() > 0 else None
+    n_w, n_a = problem.indices
 
     start = init.to(dtype).contiguous()
-    ev = _fermat(surface, start, t, tx, rx, n_w, n_a, compiled)
+    ev = _fermat(problem, start, compiled)
     iterations = torch.zeros(batch, dtype=torch.int64, device=tx.device)
     done = torch.linalg.vector_norm(ev.grad, dim=-1) < tol
 
     # Working set: the rows still iterating. It is compacted (one gather of the surface) only when
     # it has shrunk 8×, so the gather cost stays below the evaluation cost it saves.
     rows = torch.arange(batch, device=tx.device)
-    ws_surface, ws_tx, ws_rx, ws_t = surface, tx, rx, t
-    ws_rows, ws_xy, ws_ev, ws_done = rows, start, ev, done.clone()
+    ws, ws_rows, ws_xy, ws_ev, ws_done = problem, rows, start, ev, done.clone()
     for _ in range(opts.max_iter):
         todo = ~ws_done
         count = int(todo.sum())
@@ -182,16 +182,14 @@ def iterate_newton(surface, tx, rx, t, init, n_w, n_a, opts: NewtonOptions, comp
             break
         if count * 8 <= ws_rows.numel():
             keep = todo.nonzero().squeeze(-1)
-            ws_surface, ws_tx, ws_rx = ws_surface[keep], ws_tx[keep], ws_rx[keep]
-            ws_rows, ws_xy, ws_ev = ws_rows[keep], ws_xy[keep], ws_ev.select(keep)
-            ws_t = t_all[ws_rows] if t_all is not None else t
+            ws, ws_rows, ws_xy, ws_ev = ws.rows(keep), ws_rows[keep], ws_xy[keep], ws_ev.select(keep)
             todo = torch.ones(count, dtype=torch.bool, device=tx.device)
 
-        step = newton_direction(ws_ev.hess, ws_ev.grad, ws_ev.point, ws_tx, ws_rx, n_w, n_a, opts.max_step)
+        step = newton_direction(ws_ev.hess, ws_ev.grad, ws_ev.point, ws.tx, ws.rx, n_w, n_a, opts.max_step)
         step = step * todo.unsqueeze(-1)
         slope = (ws_ev.grad * step).sum(-1)
         fraction = torch.ones_like(slope)
-        trial = _fermat(ws_surface, ws_xy + step, ws_t, ws_tx, ws_rx, n_w, n_a, compiled)
+        trial = _fermat(ws, ws_xy + step, compiled)
         # Below the rounding level of L the decrease test is meaningless: take the step.
         negligible = -slope <= 16 * eps * ws_ev.length
         accepted = ~todo | negligible | (trial.length <= ws_ev.length + opts.armijo * slope)
@@ -200,17 +198,7 @@ def iterate_newton(surface, tx, rx, t, init, n_w, n_a, opts: NewtonOptions, comp
             if redo.numel() == 0:
                 break
             fraction[redo] *= 0.5
-            sub_t = ws_t[redo] if isinstance(ws_t, torch.Tensor) and ws_t.dim() > 0 else ws_t
-            part = _fermat(
-                ws_surface[redo],
-                ws_xy[redo] + fraction[redo, None] * step[redo],
-                sub_t,
-                ws_tx[redo],
-                ws_rx[redo],
-                n_w,
-                n_a,
-                compiled,
-            )
+            part = _fermat(ws.rows(redo), ws_xy[redo] + fraction[redo, None] * step[redo], compiled)
             trial.assign(redo, part)
             accepted[redo] = part.length <= ws_ev.length[redo] + opts.armijo * fraction[redo] * slope[redo]
 
@@ -222,4 +210,4 @@ def iterate_newton(surface, tx, rx, t, init, n_w, n_a, opts: NewtonOptions, comp
         done[ws_rows] = ws_done
         ev.assign(ws_rows, ws_ev)
 
-    return ev.point, ev.slope, done, iterations
+    return Iterate(ev.point, ev.slope, ev.point[:, :2], done, iterations)

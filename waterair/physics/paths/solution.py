@@ -9,11 +9,14 @@ reflection) with ``valid = False``; no output is ever NaN.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import torch
 from tensordict import TensorClass
 
-from waterair.physics.optics import N_AIR, N_WATER, angle_between, critical_angle
+from waterair.physics.optics import N_AIR, N_WATER, RefractiveIndices, angle_between, critical_angle
+from waterair.physics.surface import WaveSurface
 
 TRACK_LEASH = 3.0
 """How far (m) a tracked refraction point may stray from the calm-sea point and still be followed where
@@ -38,6 +41,39 @@ class PathSolution(TensorClass):
     d_water: torch.Tensor
     d_air: torch.Tensor
     valid: torch.Tensor
+    iterations: torch.Tensor
+
+
+@dataclass(frozen=True)
+class PathProblem:
+    """The paths a solver is asked for: B seas ``surface``, the ends ``tx`` (under water) and ``rx`` (in air),
+    each ``[B, 3]`` (m), the time ``t`` (s; a float or ``[B]``) and the refractive ``indices``."""
+
+    surface: WaveSurface
+    tx: torch.Tensor
+    rx: torch.Tensor
+    t: float | torch.Tensor
+    indices: RefractiveIndices = field(default_factory=RefractiveIndices)
+
+    def rows(self, index: torch.Tensor | slice) -> PathProblem:
+        """The paths ``index`` of this batch (a float time is every row's)."""
+        t = self.t[index] if isinstance(self.t, torch.Tensor) and self.t.dim() > 0 else self.t
+        return PathProblem(self.surface[index], self.tx[index], self.rx[index], t, self.indices)
+
+    def path(self, stop: Iterate) -> PathSolution:
+        """The path through where the iterations ``stop``ped (:func:`finish_path`)."""
+        return finish_path(stop.point, stop.slope, self.tx, self.rx, stop.converged, stop.iterations, *self.indices)
+
+
+class Iterate(NamedTuple):
+    """Where a solver's Newton iterations stopped, per path: P ``[B, 3]`` (m), the slopes (η_x, η_y) there
+    ``[B, 2]``, the (x, y) ``[B, 2]`` (m) from which more iterations would start, ``converged`` ``[B]`` (bool)
+    and the ``iterations`` taken ``[B]`` (int64)."""
+
+    point: torch.Tensor
+    slope: torch.Tensor
+    xy: torch.Tensor
+    converged: torch.Tensor
     iterations: torch.Tensor
 
 

@@ -127,7 +127,7 @@ class ElfouhailySea(SeaState):
         speed = wind.unsqueeze(-1)
         slope_density = 0.5 * self._amplitude_factor * elevation_spectrum(k, speed, self.fetch) * k**3  # k² S d(ln k)
         along, across = discrete_direction_factors(
-            self._elfouhaily_weights(k, speed), self.directions(torch.float64)[0]
+            self._elfouhaily_weights(k, speed), self.directions(torch.float64).theta
         )
         resolved_up = torch.trapezoid(slope_density * along, log_k)
         resolved_cross = torch.trapezoid(slope_density * across, log_k)

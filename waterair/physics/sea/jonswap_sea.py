@@ -134,7 +134,7 @@ class JonswapSea(SeaState):
         density = 0.5 * self._amplitude_factor * jonswap(omega, wind.unsqueeze(-1), self.fetch, self.gamma)
         density = density * (omega**2 / GRAVITY) ** 2  # k² S(ω) with k = ω²/g
         along, across = discrete_direction_factors(
-            self._jonswap_weights(omega, omega_p), self.directions(torch.float64)[0]
+            self._jonswap_weights(omega, omega_p), self.directions(torch.float64).theta
         )
         return torch.trapezoid(density * along, omega), torch.trapezoid(density * across, omega), zero, zero.clone()
 

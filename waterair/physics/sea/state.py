@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import torch
 
@@ -22,6 +22,14 @@ from waterair.physics.sea.slopes import MeanSquareSlope
 AMPLITUDE_CONVENTIONS = ("standard", "paper")
 QUADRATURE_POINTS = 20_001
 """Points of the float64 trapezoid rules of the resolved slope variance (converged to 1e-7)."""
+
+
+class DirectionBins(NamedTuple):
+    """The direction bins of a sea: their centres ``theta`` relative to the wind (rad, ``[n_dir]``) and their
+    ``width`` Δθ (rad)."""
+
+    theta: torch.Tensor
+    width: float
 
 
 @dataclass(frozen=True)
@@ -91,11 +99,11 @@ class SeaState:
         wind = wind.to(torch.float64)
         return torch.zeros_like(wind), torch.zeros_like(wind)
 
-    def directions(self, dtype: torch.dtype = torch.float32, device=None) -> tuple[torch.Tensor, float]:
+    def directions(self, dtype: torch.dtype = torch.float32, device=None) -> DirectionBins:
         """Direction bin centres relative to the wind (rad, ``[n_dir]``) and the bin width Δθ."""
         d_theta = math.pi / self.n_dir
         centres = -math.pi / 2 + (torch.arange(self.n_dir, dtype=dtype, device=device) + 0.5) * d_theta
-        return centres, d_theta
+        return DirectionBins(centres, d_theta)
 
     @property
     def significant_wave_height(self) -> float:

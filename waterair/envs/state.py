@@ -1,0 +1,199 @@
+"""The environment step's data by name (:mod:`waterair.envs.kernel`): the state of B links that a step reads and
+writes, the gimbals an action moves, the sensors' readings and the packet they travel in, the true measurement,
+and what a step gives back.
+
+Frozen dataclasses and named tuples of tensors, each ``[B, ...]``: ``torch.compile`` traces them as it traces
+dicts and tuples, so the step stays one graph, its batch dimension symbolic by the same source names
+(``L['state']...``, :data:`waterair.envs.stepper.BATCH_SOURCES`), and an entry a step leaves as it was comes back as
+the same tensor.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, replace
+from typing import NamedTuple
+
+import torch
+
+from waterair.envs.sensors import packet_sizes
+from waterair.physics.paths import Iterate
+from waterair.physics.surface import Harmonics
+
+
+class Tilts(NamedTuple):
+    """The commanded tilt vectors (v_x, v_y) of the transmitter and the receiver, ``[B, 2]`` each."""
+
+    tx_tilt: torch.Tensor
+    rx_tilt: torch.Tensor
+
+
+class Moved(NamedTuple):
+    """The gimbals, the action history and the clock after an action (:func:`waterair.envs.kernel.advance`): the
+    tilts ``[B, 2]``, the last actions ``[B, history_length, 4]``, newest first, the time (s) and the steps since
+    the reset (int64), ``[B]`` each."""
+
+    tx_tilt: torch.Tensor
+    rx_tilt: torch.Tensor
+    action_history: torch.Tensor
+    time: torch.Tensor
+    steps: torch.Tensor
+
+    @property
+    def tilts(self) -> Tilts:
+        return Tilts(self.tx_tilt, self.rx_tilt)
+
+
+@dataclass(frozen=True)
+class StepState:
+    """Everything a step reads of B links and everything it changes; nothing in the kernel keeps state.
+
+    Attributes:
+        sea: the links' resolved seas (the environment's surface).
+        time, steps: the time (s) and the steps since the reset (int64), ``[B]``.
+        tx_tilt, rx_tilt: the commanded tilt vectors ``[B, 2]``.
+        tx_position, rx_position: T and R (m) ``[B, 3]``.
+        divergence: each link's ω_D (rad) ``[B]``, drawn at its reset, float64: as exact as the configuration's
+            float, the gains take what they derive from it in float64 (optics.per_link).
+        point, previous_point: the last two path points (m) ``[B, 3]``, from which the next is predicted.
+        flat_point: the calm-sea path point (m) ``[B, 3]``; reference_gain: G_0 (1/m²) ``[B]``.
+        history: the previous measured intensity features ``[B, history_length]``, newest first;
+            last_feature: the newest ``[B]``.
+        action_history: the last actions ``[B, history_length, 4]``, newest first.
+        packets: the packets in flight ``[B, latency_steps + 1, width]``, newest first; the controller sees the last.
+        prepared: the channel's per-episode constants by its names (``ChannelModel.prepared_keys``), ``[B, ...]``.
+    """
+
+    sea: Harmonics
+    time: torch.Tensor
+    steps: torch.Tensor
+    tx_tilt: torch.Tensor
+    rx_tilt: torch.Tensor
+    tx_position: torch.Tensor
+    rx_position: torch.Tensor
+    divergence: torch.Tensor
+    point: torch.Tensor
+    previous_point: torch.Tensor
+    flat_point: torch.Tensor
+    reference_gain: torch.Tensor
+    history: torch.Tensor
+    last_feature: torch.Tensor
+    action_history: torch.Tensor
+    packets: torch.Tensor
+    prepared: Mapping[str, torch.Tensor]
+
+    @classmethod
+    def zeros(
+        cls, sea: Harmonics, prepared: Mapping[str, torch.Tensor], history_length: int, latency_steps: int
+    ) -> StepState:
+        """A state of zeros for the links of ``sea`` (their number, device and float dtype), with room for
+        ``history_length`` features and actions, ``latency_steps + 1`` packets in flight and the channel's
+        ``prepared`` constants (one link's worth of each is their shape)."""
+        batch, dtype, device = sea.omega.shape[0], sea.omega.dtype, sea.omega.device
+
+        def zeros(*shape: int, kind: torch.dtype = dtype) -> torch.Tensor:
+            return torch.zeros(batch, *shape, dtype=kind, device=device)
+
+        return cls(
+            sea=sea,
+            time=zeros(),
+            steps=zeros(kind=torch.int64),
+            tx_tilt=zeros(2),
+            rx_tilt=zeros(2),
+            tx_position=zeros(3),
+            rx_position=zeros(3),
+            divergence=zeros(kind=torch.float64),
+            point=zeros(3),
+            previous_point=zeros(3),
+            flat_point=zeros(3),
+            reference_gain=zeros(),
+            history=zeros(history_length),
+            last_feature=zeros(),
+            action_history=zeros(history_length, 4),
+            packets=zeros(latency_steps + 1, sum(packet_sizes(history_length))),
+            prepared={key: zeros(*value.shape[1:]) for key, value in prepared.items()},
+        )
+
+    def after(self, moved: Moved, **changes: torch.Tensor) -> StepState:
+        """This state with the gimbals and the clock ``moved`` and the entries ``changes`` replaced."""
+        return replace(
+            self,
+            tx_tilt=moved.tx_tilt,
+            rx_tilt=moved.rx_tilt,
+            action_history=moved.action_history,
+            time=moved.time,
+            steps=moved.steps,
+            **changes,
+        )
+
+    def tensors(self) -> dict[str, torch.Tensor]:
+        """The per-link entries by name (the seas and the channel's constants left out), for writing rows in place."""
+        return {
+            field.name: getattr(self, field.name) for field in fields(self) if field.name not in ("sea", "prepared")
+        }
+
+
+class Readings(NamedTuple):
+    """One step's sensor readings, in the order they travel (:data:`waterair.envs.sensors.PACKET_PARTS`): both
+    pointings (unit, ``[n, 3]``), the intensity feature ``[n, 1]``, the spot ``[n, 2]`` and its validity ``[n, 1]``,
+    the beacon reading ``[n, 2]`` and its validity ``[n, 1]``."""
+
+    tx_pointing: torch.Tensor
+    rx_pointing: torch.Tensor
+    intensity: torch.Tensor
+    spot: torch.Tensor
+    spot_valid: torch.Tensor
+    beacon: torch.Tensor
+    beacon_valid: torch.Tensor
+
+
+class Packet(NamedTuple):
+    """A packet as delivered: the :class:`Readings` and the intensity history ``[n, history_length]`` read with
+    them (the parts of :data:`waterair.envs.sensors.PACKET_PARTS`, in order)."""
+
+    tx_pointing: torch.Tensor
+    rx_pointing: torch.Tensor
+    intensity: torch.Tensor
+    spot: torch.Tensor
+    spot_valid: torch.Tensor
+    beacon: torch.Tensor
+    beacon_valid: torch.Tensor
+    history: torch.Tensor
+
+
+class Measurement(NamedTuple):
+    """The true values each step reports beside the observation, ``[B]`` unless noted: G (1/m²), G_UB, the
+    intensity I = G / G_0, whether the path is valid, α_D and α_A (rad), and the path's unit departure and
+    arrival ``[B, 3]``."""
+
+    gain: torch.Tensor
+    gain_upper_bound: torch.Tensor
+    intensity: torch.Tensor
+    path_valid: torch.Tensor
+    alpha_d: torch.Tensor
+    alpha_a: torch.Tensor
+    departure: torch.Tensor
+    arrival: torch.Tensor
+
+
+class Outputs(NamedTuple):
+    """What a step reports: the true ``measurement``, the ``observation`` (every part: ``kernel.observe``), the
+    ``reward`` and ``truncated`` ``[B, 1]``, and the residual base controller's tilts for the next action
+    ``base_tilt`` ``[B, 4]``."""
+
+    measurement: Measurement
+    observation: torch.Tensor
+    reward: torch.Tensor
+    truncated: torch.Tensor
+    base_tilt: torch.Tensor
+
+
+class StepResult(NamedTuple):
+    """A step of every link (:func:`waterair.envs.kernel.step`, ``finish``, ``conclude``): the new ``state``, its
+    ``outputs``, the gimbals ``moved`` and the path ``solution`` it was concluded with (for finishing the links
+    whose path has not converged)."""
+
+    state: StepState
+    outputs: Outputs
+    moved: Moved
+    solution: Iterate
