@@ -9,7 +9,6 @@ from dataclasses import replace
 
 import torch
 from tensordict import TensorDict, TensorDictBase
-from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from waterair.core.devices import resolve_device
@@ -20,6 +19,7 @@ from waterair.envs.frames import FrameStack
 from waterair.envs.noise import stream_keys
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import Sensor, SensorSettings
+from waterair.envs.specs import make_specs
 from waterair.envs.state import Measurement, StepState, Tilts
 from waterair.envs.stepper import Stepper
 from waterair.physics.channel import LinkEnds, pointing
@@ -97,7 +97,9 @@ class WaterAirEnv(EnvBase):
         self.optics = self.channel.optics
         self.float_dtype = getattr(torch, config.dtype)
         self.observation_size = config.observation_size
-        self._make_specs()
+        specs = make_specs(self.observation_size, self.float_dtype)
+        self.observation_spec_unbatched, self.action_spec_unbatched = specs.observation, specs.action
+        self.reward_spec_unbatched, self.done_spec_unbatched = specs.reward, specs.done
         self._generator = torch.Generator()
         self._sensor_generator = torch.Generator()
         self._channel_generator = torch.Generator()
@@ -230,34 +232,6 @@ class WaterAirEnv(EnvBase):
         return ~kernel.solve(self.constants, state, state.time + self.config.dt).converged
 
     # --- internals --------------------------------------------------------------------------
-
-    def _make_specs(self) -> None:
-        dtype = self.float_dtype
-
-        def vector(size: int) -> Unbounded:
-            return Unbounded(shape=(size,), dtype=dtype)
-
-        scalar = Unbounded(shape=(), dtype=dtype)
-        self.observation_spec_unbatched = Composite(
-            observation=vector(self.observation_size),
-            gain=scalar.clone(),
-            gain_upper_bound=scalar.clone(),
-            intensity=scalar.clone(),
-            path_valid=Categorical(2, shape=(), dtype=torch.bool),
-            alpha_d=scalar.clone(),
-            alpha_a=scalar.clone(),
-            departure=vector(3),
-            arrival=vector(3),
-            tx_position=vector(3),
-            rx_position=vector(3),
-            divergence=Unbounded(shape=(), dtype=torch.float64),
-            tilt=vector(4),
-            base_tilt=vector(4),
-        )
-        self.action_spec_unbatched = Bounded(low=-1.0, high=1.0, shape=(4,), dtype=dtype)
-        self.reward_spec_unbatched = Unbounded(shape=(1,), dtype=dtype)
-        flag = Categorical(2, shape=(1,), dtype=torch.bool)
-        self.done_spec_unbatched = Composite(done=flag.clone(), terminated=flag.clone(), truncated=flag.clone())
 
     def _allocate_state(self) -> None:
         batch, device, dtype = self.batch_size[0], self.device, self.float_dtype
