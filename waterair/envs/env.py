@@ -261,39 +261,6 @@ class WaterAirEnv(EnvBase):
         return replace(self.state, sea=self.surface.harmonics)
 
     @property
-    def time(self) -> torch.Tensor:
-        """Each link's time since its reset (s), ``[B]``."""
-        return self.state.time
-
-    @property
-    def steps(self) -> torch.Tensor:
-        """Each link's steps since its reset, ``[B]`` int64."""
-        return self.state.steps
-
-    @property
-    def point(self) -> torch.Tensor:
-        """Each link's present path point P (m), ``[B, 3]`` (the calm-sea point where the path is invalid)."""
-        return self.state.point
-
-    @property
-    def reference_gain(self) -> torch.Tensor:
-        """G_0 of each link's geometry (1/m²), ``[B]``: the intensity reference."""
-        return self.state.reference_gain
-
-    @property
-    def divergence(self) -> torch.Tensor:
-        """Each link's beam divergence ω_D (rad), ``[B]`` (``env.divergence_range`` draws it at a reset)."""
-        return self.state.divergence
-
-    @property
-    def tx_position(self) -> torch.Tensor:
-        return self.state.tx_position
-
-    @property
-    def rx_position(self) -> torch.Tensor:
-        return self.state.rx_position
-
-    @property
     def tilt(self) -> torch.Tensor:
         """The present commanded tilt vectors (tx_vx, tx_vy, rx_vx, rx_vy), ``[B, 4]``."""
         return torch.cat((self.state.tx_tilt, self.state.rx_tilt), dim=-1)
