@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import torch
 
-from waterair.core.validation import check_int, check_range
+from waterair.core.validation import check_int
 from waterair.physics.channel.facets import interception, slope_density
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
@@ -109,12 +109,9 @@ class LocalEstimate(RayEstimate):
     @staticmethod
     def check_settings(**settings) -> None:
         """Validate the settings given (``rays``, ``points``, ``proposal_beams``)."""
-        if "rays" in settings:
-            check_int("rays", settings["rays"], 1, 10**9)
+        RayEstimate.check_settings(**settings)
         if "points" in settings:
             check_int("points", settings["points"], 1, 10**4)
-        if "proposal_beams" in settings:
-            check_range("proposal_beams", settings["proposal_beams"], 0.0, 100.0, low_open=True)
 
     def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> dict[str, torch.Tensor]:
         """The unresolved slope covariance ``[B, 3]`` the facet density uses; refused where it is not positive."""

@@ -95,6 +95,14 @@ class RayEstimate(ChannelModel):
     compiles = False
     prepared_keys = ("unresolved",)
 
+    @staticmethod
+    def check_settings(**settings) -> None:
+        """Validate the settings given that every estimate has (``rays``, ``proposal_beams``)."""
+        if "rays" in settings:
+            check_int("rays", settings["rays"], 1, 10**9)
+        if "proposal_beams" in settings:
+            check_range("proposal_beams", settings["proposal_beams"], 0.0, 100.0, low_open=True)
+
     def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
         return calm_sea_reference(tx, rx, self.optics)
 
@@ -163,12 +171,9 @@ class MonteCarlo(RayEstimate):
     @staticmethod
     def check_settings(**settings) -> None:
         """Validate the settings given (``rays``, ``facets``, ``proposal_beams``)."""
-        if "rays" in settings:
-            check_int("rays", settings["rays"], 1, 10**9)
+        RayEstimate.check_settings(**settings)
         if "facets" in settings:
             check_int("facets", settings["facets"], 1, 10**5)
-        if "proposal_beams" in settings:
-            check_range("proposal_beams", settings["proposal_beams"], 0.0, 100.0, low_open=True)
 
     def estimate(
         self,
