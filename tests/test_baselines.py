@@ -12,7 +12,7 @@ def test_baselines_point_where_they_say():
     env = WaterAirEnv(num_envs=2, seed=0, geometry={"offset_ratio": 0.3}, **paper_physics(n_freq=8, n_dir=4))
     td = env.reset()
     straight = StraightFacing(env)(td.clone())["action"]
-    line = env.rx_position - env.tx_position
+    line = env.state.rx_position - env.state.tx_position
     line = line / line.norm(dim=-1, keepdim=True)
     torch.testing.assert_close(straight[:, :2] * env.config.max_tilt, line[:, :2])
     torch.testing.assert_close(straight[:, 2:] * env.config.max_tilt, -line[:, :2])

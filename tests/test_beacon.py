@@ -150,8 +150,8 @@ def test_with_ideal_sensing_on_a_single_path_the_beacon_tracker_points_as_exact_
 def test_the_beacon_reading_is_zero_unless_asked_for_and_the_residual_base_needs_it():
     env = WaterAirEnv(sea={"n_dir": 8}, num_envs=3, seed=1, observation_extras=("spot", "spot_valid"))
     assert env.constants.beacon is None  # not read: no cost, the packet's beacon slots stay 0
-    packet = unpack(env.state.packets[:, -1])
-    assert bool((packet.beacon == 0).all()) and bool((packet.beacon_valid == 0).all())
+    readings = unpack(env.state.packets[:, -1]).readings
+    assert bool((readings.beacon == 0).all()) and bool((readings.beacon_valid == 0).all())
     with pytest.raises(
         ValueError, match=r"^env.residual_base = 'beacon_tracker' needs its readings.*beacon, beacon_valid"
     ):

@@ -103,7 +103,7 @@ def rollout(channel: str, sea: str, interface: str) -> dict[str, torch.Tensor]:
         rewards.append(td["reward"])
     trace = {key: torch.stack([frame[key] for frame in frames]) for key in KEYS}
     trace["reward"] = torch.stack(rewards)
-    trace["reference_gain"] = env.reference_gain.clone()
+    trace["reference_gain"] = env.state.reference_gain.clone()
     return trace
 
 

@@ -92,7 +92,7 @@ def test_partial_reset_changes_exactly_the_masked_links():
     torch.testing.assert_close(env.surface.phase[~rows], before_phase[~rows])
     torch.testing.assert_close(out["observation"][~rows], before_obs[~rows])
     assert (out["observation"][rows, -1] == 0).all()  # relative time restarted
-    assert (env.steps[rows] == 0).all() and (env.steps[~rows] == 3).all()
+    assert (env.state.steps[rows] == 0).all() and (env.state.steps[~rows] == 3).all()
     assert not out["done"].any()
 
 
@@ -116,13 +116,13 @@ def test_step_writes_measurements_outside_the_observation():
     nxt = env.step(td)["next"]
     for key in ("gain", "gain_upper_bound", "intensity", "path_valid", "alpha_d", "alpha_a", "departure", "arrival"):
         assert key in nxt.keys()
-    torch.testing.assert_close(nxt["intensity"], nxt["gain"] / env.reference_gain)
+    torch.testing.assert_close(nxt["intensity"], nxt["gain"] / env.state.reference_gain)
     torch.testing.assert_close(nxt["observation"][:, 6], intensity_feature(nxt["intensity"]))
 
 
 def test_domain_randomisation_draws_per_link_values():
     env = small_env(num_envs=64, wind_range=(4.0, 20.0), offset_range=(0.0, 0.5))
-    offsets = torch.linalg.vector_norm(env.rx_position[:, :2], dim=-1) / 20.0
+    offsets = torch.linalg.vector_norm(env.state.rx_position[:, :2], dim=-1) / 20.0
     assert offsets.min() >= 0 and offsets.max() <= 0.5 and offsets.std() > 0.05
     variance = env.surface.variance()
     assert variance.max() > 5 * variance.min()  # 4 vs 20 m/s seas differ a lot
@@ -131,15 +131,15 @@ def test_domain_randomisation_draws_per_link_values():
 def test_per_link_values_cycle_through_scenario_points():
     winds, offsets = (4.0, 12.0, 20.0), (0.0, 0.25, 0.5)
     env = small_env(num_envs=6, wind_values=winds, offset_values=offsets)
-    measured = torch.linalg.vector_norm(env.rx_position[:, :2] - env.tx_position[:, :2], dim=-1) / 20.0
+    measured = torch.linalg.vector_norm(env.state.rx_position[:, :2] - env.state.tx_position[:, :2], dim=-1) / 20.0
     torch.testing.assert_close(measured, torch.tensor(offsets * 2), atol=1e-6, rtol=0)
     variance = env.surface.variance().double()
     # link i and link i + 3 share a point; the variance grows with the wind at every point (m0 ∝ U² here)
     assert (variance[1] > 3 * variance[0]) and (variance[2] > variance[1])
     assert (variance[4] > 3 * variance[3]) and (variance[5] > variance[4])
     # G_0 is computed per link from that link's own offset
-    assert env.reference_gain[0] > env.reference_gain[1] > env.reference_gain[2]
-    torch.testing.assert_close(env.reference_gain[:3], env.reference_gain[3:])
+    assert env.state.reference_gain[0] > env.state.reference_gain[1] > env.state.reference_gain[2]
+    torch.testing.assert_close(env.state.reference_gain[:3], env.state.reference_gain[3:])
 
 
 def test_replicas_share_their_seas_and_points_but_not_their_pointing():
@@ -148,7 +148,7 @@ def test_replicas_share_their_seas_and_points_but_not_their_pointing():
     for k in (1, 2):
         for name in ("omega", "kx", "ky", "amplitude", "phase"):
             assert torch.equal(getattr(env.surface, name)[2 * k : 2 * k + 2], getattr(env.surface, name)[:2]), name
-        torch.testing.assert_close(env.rx_position[2 * k : 2 * k + 2], env.rx_position[:2], rtol=0, atol=0)
+        torch.testing.assert_close(env.state.rx_position[2 * k : 2 * k + 2], env.state.rx_position[:2], rtol=0, atol=0)
     assert not torch.equal(env.surface.phase[0], env.surface.phase[1])  # the two distinct links differ
     # different actions on identical seas: the same paths (and G_UB), different gains
     action = torch.zeros(6, 4)

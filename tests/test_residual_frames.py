@@ -35,7 +35,7 @@ def test_a_zero_residual_on_flat_snell_points_both_ends_along_the_calm_sea_path(
     env = WaterAirEnv(EnvConfig(action_mode="residual", dtype="float64", **SMALL, **SENSING))
     env.rollout(1, zero_action)
     tilt = env.tilt.double()
-    tx, rx = env.tx_position.double(), env.rx_position.double()
+    tx, rx = env.state.tx_position.double(), env.state.rx_position.double()
     for row in range(env.batch_size[0]):
         up = torch.cat((tilt[row, :2], torch.sqrt(1 - tilt[row, :2].square().sum()).unsqueeze(0)))
         down = torch.cat((tilt[row, 2:], -torch.sqrt(1 - tilt[row, 2:].square().sum()).unsqueeze(0)))
@@ -78,7 +78,7 @@ def test_while_only_the_parked_reading_has_arrived_the_ends_take_the_base_pointi
     env = WaterAirEnv(EnvConfig(action_mode="residual", residual_base="aoa_tracker", **SMALL, **sensing))
     td = env.reset()
     assert td["observation"][:, env.config.observation_layout["spot_valid"]].any()  # readings the parking ignores
-    flat = flat_tilts(env.state.flat_point, env.tx_position, env.rx_position)
+    flat = flat_tilts(env.state.flat_point, env.state.tx_position, env.state.rx_position)
     tilts = []
     generator = torch.Generator().manual_seed(0)
     for _ in range(latency + 2):
@@ -145,7 +145,7 @@ def test_the_pointing_term_is_the_misalignment_of_both_ends_from_the_path():
     env = WaterAirEnv(config, reward=reward)
     generator = torch.Generator().manual_seed(1)
     actions = torch.rand(30, 6, 4, generator=generator, dtype=torch.float64) * 2 - 1
-    steps = env.rollout(30, lambda td: td.set("action", actions[int(env.steps[0])]))
+    steps = env.rollout(30, lambda td: td.set("action", actions[int(env.state.steps[0])]))
     nxt = steps["next"]
     valid = nxt["path_valid"].double()
     misalignment = (nxt["alpha_d"] / config.optics.divergence + nxt["alpha_a"] / config.optics.half_fov) * valid

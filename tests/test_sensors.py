@@ -70,7 +70,7 @@ def test_below_the_gating_threshold_the_spot_reads_nothing_and_the_tracker_falls
 
 
 def test_a_packet_travels_in_the_order_of_its_parts():
-    assert Packet._fields == PACKET_PARTS and Readings._fields + ("history",) == PACKET_PARTS
+    assert (*Readings._fields, "history") == PACKET_PARTS and Packet._fields == ("readings", "history")
 
 
 def test_the_sensor_settings_are_the_sensing_keys():

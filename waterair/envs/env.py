@@ -9,7 +9,6 @@ from dataclasses import replace
 
 import torch
 from tensordict import TensorDict, TensorDictBase
-from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from waterair.core.devices import resolve_device
@@ -20,6 +19,7 @@ from waterair.envs.frames import FrameStack
 from waterair.envs.noise import stream_keys
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import Sensor, SensorSettings
+from waterair.envs.specs import make_specs
 from waterair.envs.state import Measurement, StepState, Tilts
 from waterair.envs.stepper import Stepper
 from waterair.physics.channel import LinkEnds, pointing
@@ -97,7 +97,9 @@ class WaterAirEnv(EnvBase):
         self.optics = self.channel.optics
         self.float_dtype = getattr(torch, config.dtype)
         self.observation_size = config.observation_size
-        self._make_specs()
+        specs = make_specs(self.observation_size, self.float_dtype)
+        self.observation_spec_unbatched, self.action_spec_unbatched = specs.observation, specs.action
+        self.reward_spec_unbatched, self.done_spec_unbatched = specs.reward, specs.done
         self._generator = torch.Generator()
         self._sensor_generator = torch.Generator()
         self._channel_generator = torch.Generator()
@@ -231,34 +233,6 @@ class WaterAirEnv(EnvBase):
 
     # --- internals --------------------------------------------------------------------------
 
-    def _make_specs(self) -> None:
-        dtype = self.float_dtype
-
-        def vector(size: int) -> Unbounded:
-            return Unbounded(shape=(size,), dtype=dtype)
-
-        scalar = Unbounded(shape=(), dtype=dtype)
-        self.observation_spec_unbatched = Composite(
-            observation=vector(self.observation_size),
-            gain=scalar.clone(),
-            gain_upper_bound=scalar.clone(),
-            intensity=scalar.clone(),
-            path_valid=Categorical(2, shape=(), dtype=torch.bool),
-            alpha_d=scalar.clone(),
-            alpha_a=scalar.clone(),
-            departure=vector(3),
-            arrival=vector(3),
-            tx_position=vector(3),
-            rx_position=vector(3),
-            divergence=Unbounded(shape=(), dtype=torch.float64),
-            tilt=vector(4),
-            base_tilt=vector(4),
-        )
-        self.action_spec_unbatched = Bounded(low=-1.0, high=1.0, shape=(4,), dtype=dtype)
-        self.reward_spec_unbatched = Unbounded(shape=(1,), dtype=dtype)
-        flag = Categorical(2, shape=(1,), dtype=torch.bool)
-        self.done_spec_unbatched = Composite(done=flag.clone(), terminated=flag.clone(), truncated=flag.clone())
-
     def _allocate_state(self) -> None:
         batch, device, dtype = self.batch_size[0], self.device, self.float_dtype
 
@@ -285,39 +259,6 @@ class WaterAirEnv(EnvBase):
     def _full_state(self) -> StepState:
         """The step's input: :attr:`state` on the seas of :attr:`surface`."""
         return replace(self.state, sea=self.surface.harmonics)
-
-    @property
-    def time(self) -> torch.Tensor:
-        """Each link's time since its reset (s), ``[B]``."""
-        return self.state.time
-
-    @property
-    def steps(self) -> torch.Tensor:
-        """Each link's steps since its reset, ``[B]`` int64."""
-        return self.state.steps
-
-    @property
-    def point(self) -> torch.Tensor:
-        """Each link's present path point P (m), ``[B, 3]`` (the calm-sea point where the path is invalid)."""
-        return self.state.point
-
-    @property
-    def reference_gain(self) -> torch.Tensor:
-        """G_0 of each link's geometry (1/m²), ``[B]``: the intensity reference."""
-        return self.state.reference_gain
-
-    @property
-    def divergence(self) -> torch.Tensor:
-        """Each link's beam divergence ω_D (rad), ``[B]`` (``env.divergence_range`` draws it at a reset)."""
-        return self.state.divergence
-
-    @property
-    def tx_position(self) -> torch.Tensor:
-        return self.state.tx_position
-
-    @property
-    def rx_position(self) -> torch.Tensor:
-        return self.state.rx_position
 
     @property
     def tilt(self) -> torch.Tensor:

@@ -86,7 +86,7 @@ def base_tilts(c: StepConstants, state: StepState) -> torch.Tensor:
     point, tx, rx = state.flat_point, state.tx_position, state.rx_position
     if c.residual_base == "flat_snell":
         return flat_tilts(point, tx, rx)
-    delivered = unpack(state.packets[:, -1])
+    delivered = unpack(state.packets[:, -1]).readings
     flat = unit_vector(point - tx), unit_vector(point - rx)
     if c.residual_base == "beacon_tracker":
         assert c.beacon is not None  # EnvConfig.senses_beacon: a beacon base reads the beacon
@@ -209,7 +209,8 @@ def pack(readings: Readings, history: torch.Tensor) -> torch.Tensor:
 def unpack(packet: torch.Tensor) -> Packet:
     """The parts of one packet ``[n, width]`` by name (the inverse of :func:`pack`)."""
     history_length = packet.shape[-1] - sum(packet_sizes(0))
-    return Packet(*packet.split(packet_sizes(history_length), dim=-1))
+    *readings, history = packet.split(packet_sizes(history_length), dim=-1)
+    return Packet(Readings(*readings), history)
 
 
 def conclude(
@@ -291,7 +292,7 @@ def observe(c: StepConstants, state: StepState) -> torch.Tensor:
     narrow, wide = DIVERGENCE_SPAN
     divergence = torch.log(state.divergence**2 / (narrow * wide)) / math.log(wide / narrow)
     divergence = divergence.to(time.dtype).unsqueeze(-1)
-    late = list(delivered)
+    late = [*delivered.readings, delivered.history]
     return torch.cat((*late[:3], time, *late[3:], state.action_history.flatten(1), geometry, divergence), dim=-1)
 
 

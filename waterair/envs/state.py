@@ -151,13 +151,7 @@ class Packet(NamedTuple):
     """A packet as delivered: the :class:`Readings` and the intensity history ``[n, history_length]`` read with
     them (the parts of :data:`waterair.envs.sensors.PACKET_PARTS`, in order)."""
 
-    tx_pointing: torch.Tensor
-    rx_pointing: torch.Tensor
-    intensity: torch.Tensor
-    spot: torch.Tensor
-    spot_valid: torch.Tensor
-    beacon: torch.Tensor
-    beacon_valid: torch.Tensor
+    readings: Readings
     history: torch.Tensor
 
 

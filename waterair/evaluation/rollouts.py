@@ -71,7 +71,7 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
     # row = k·links + r·P + p: policy k, realisation r, point p
     shape = (len(members), realisations, len(points), steps)
     traces = {key: rollout["next", key].cpu().reshape(shape) for key in TRACE_KEYS}
-    reference = env.reference_gain.cpu().reshape(shape[:3])
+    reference = env.state.reference_gain.cpu().reshape(shape[:3])
     return {
         label: {**{key: value[k] for key, value in traces.items()}, "reference_gain": reference[k]}
         for k, (label, _) in enumerate(members)

@@ -25,14 +25,14 @@ from dataclasses import dataclass
 
 import torch
 
-from waterair.core.validation import check_int, check_range
+from waterair.core.validation import check_int
 from waterair.physics.channel.facets import interception, slope_density
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
 from waterair.physics.channel.model import LinkEnds
-from waterair.physics.channel.montecarlo import MonteCarloLight, RayChunk, RayEstimate, RayRequest
+from waterair.physics.channel.montecarlo import MonteCarloLight, RayChunk, RayEstimate, RayRequest, ray_offsets
 from waterair.physics.channel.rays import FEWEST_ITERATIONS, departures, surface_hits
-from waterair.physics.optics import per_link, transverse_frame, water_transmittance
+from waterair.physics.optics import transverse_frame, water_transmittance
 from waterair.physics.surface import Harmonics
 
 
@@ -109,12 +109,9 @@ class LocalEstimate(RayEstimate):
     @staticmethod
     def check_settings(**settings) -> None:
         """Validate the settings given (``rays``, ``points``, ``proposal_beams``)."""
-        if "rays" in settings:
-            check_int("rays", settings["rays"], 1, 10**9)
+        RayEstimate.check_settings(**settings)
         if "points" in settings:
             check_int("points", settings["points"], 1, 10**4)
-        if "proposal_beams" in settings:
-            check_range("proposal_beams", settings["proposal_beams"], 0.0, 100.0, low_open=True)
 
     def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> dict[str, torch.Tensor]:
         """The unresolved slope covariance ``[B, 3]`` the facet density uses; refused where it is not positive."""
@@ -155,17 +152,14 @@ def local_estimate(
         request: the proposal, the rays and points, and the aperture disk's normal at R (:class:`RayRequest`).
     """
     batch, dtype, device = tx.shape[0], tx.dtype, tx.device
-    rays, points, width, generator = request.rays, request.per_ray, request.width, request.generator
-    chunk = max(16, request.memory // (batch * sea.omega.shape[-1]))
+    rays, points, generator = request.rays, request.per_ray, request.generator
     frame = transverse_frame(request.axis)
     a1, a2 = transverse_frame(request.reference)
     radius = optics.aperture_diameter / 2.0
     pieces = []
-    for start in range(0, rays, chunk):
-        count = min(chunk, rays - start)
-        draws = torch.randn(batch, count, 2, generator=generator, dtype=torch.float64, device=generator.device)
-        disk = torch.rand(batch, count, points, 2, generator=generator, dtype=torch.float64, device=generator.device)
-        tangent = (per_link(width, draws) * draws).to(device=device, dtype=dtype)
+    for start, tangent in ray_offsets(request, sea, tx):
+        shape = (batch, tangent.shape[1], points, 2)
+        disk = torch.rand(shape, generator=generator, dtype=torch.float64, device=generator.device)
         disk = disk.to(device=device, dtype=dtype)
         rho, phi = radius * torch.sqrt(disk[..., 0]), 2.0 * math.pi * disk[..., 1]
         offset = (rho * torch.cos(phi)).unsqueeze(-1) * a1[:, None, None, :] + (rho * torch.sin(phi)).unsqueeze(

@@ -17,7 +17,7 @@ m, rad, 1/m² per unit on-axis radiant intensity.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -95,6 +95,14 @@ class RayEstimate(ChannelModel):
     compiles = False
     prepared_keys = ("unresolved",)
 
+    @staticmethod
+    def check_settings(**settings) -> None:
+        """Validate the settings given that every estimate has (``rays``, ``proposal_beams``)."""
+        if "rays" in settings:
+            check_int("rays", settings["rays"], 1, 10**9)
+        if "proposal_beams" in settings:
+            check_range("proposal_beams", settings["proposal_beams"], 0.0, 100.0, low_open=True)
+
     def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
         return calm_sea_reference(tx, rx, self.optics)
 
@@ -163,12 +171,9 @@ class MonteCarlo(RayEstimate):
     @staticmethod
     def check_settings(**settings) -> None:
         """Validate the settings given (``rays``, ``facets``, ``proposal_beams``)."""
-        if "rays" in settings:
-            check_int("rays", settings["rays"], 1, 10**9)
+        RayEstimate.check_settings(**settings)
         if "facets" in settings:
             check_int("facets", settings["facets"], 1, 10**5)
-        if "proposal_beams" in settings:
-            check_range("proposal_beams", settings["proposal_beams"], 0.0, 100.0, low_open=True)
 
     def estimate(
         self,
@@ -203,8 +208,7 @@ def trace(
             (:class:`RayRequest`).
     """
     batch, dtype, device = tx.shape[0], tx.dtype, tx.device
-    rays, facets, width, generator = request.rays, request.per_ray, request.width, request.generator
-    chunk = max(16, request.memory // (batch * sea.omega.shape[-1]))
+    rays, facets, generator = request.rays, request.per_ray, request.generator
     frame = transverse_frame(request.axis)
     covariance = unresolved.to(torch.float64)
     xx, xy, yy = covariance.unbind(-1)
@@ -215,12 +219,9 @@ def trace(
     cholesky = torch.stack((torch.stack((l11, torch.zeros_like(l11)), -1), torch.stack((l21, l22), -1)), -2)
     cholesky = torch.where((covariance.abs().sum(-1) > 0)[:, None, None], cholesky, torch.zeros_like(cholesky))
     pieces = []
-    for start in range(0, rays, chunk):
-        count = min(chunk, rays - start)
-        draws = torch.randn(batch, count, 2, generator=generator, dtype=torch.float64, device=generator.device)
-        tangent = per_link(width, draws) * draws
-        tilt = torch.randn(batch, count, facets, 2, generator=generator, dtype=torch.float64, device=generator.device)
-        tangent, tilt = tangent.to(device=device, dtype=dtype), tilt.to(device=device)
+    for start, tangent in ray_offsets(request, sea, tx):
+        shape = (batch, tangent.shape[1], facets, 2)
+        tilt = torch.randn(shape, generator=generator, dtype=torch.float64, device=generator.device).to(device)
         facet_slopes = torch.einsum("bij,bnmj->bnmi", cholesky.to(device), tilt).to(dtype)
         pieces.append(_trace_chunk(sea, tx, rx, t, optics, request, RayChunk(start, tangent, frame, facet_slopes)))
     weight, departure, arrival, ray = (torch.cat(part, dim=1) for part in zip(*pieces, strict=True))
@@ -242,6 +243,19 @@ def trace(
     )
     counts = torch.full((batch,), rays, dtype=torch.int64, device=device)
     return MonteCarloLight(light=light, ray=gather(ray), rays=counts, batch_size=[batch])
+
+
+def ray_offsets(request: RayRequest, sea: Harmonics, tx: torch.Tensor) -> Iterator[tuple[int, torch.Tensor]]:
+    """The ``request``'s rays in chunks of under ``request.memory`` elements of one surface evaluation of ``sea``:
+    each chunk's first ray and the rays' offsets ``tangent`` ``[B, n, 2]`` (rad) around the axis, drawn from the
+    proposal in float64 and handed over in ``tx``'s dtype and device. A caller draws its per-ray values from
+    ``request.generator`` before it asks for the next chunk, so that a seed gives the same rays."""
+    batch, generator = tx.shape[0], request.generator
+    chunk = max(16, request.memory // (batch * sea.omega.shape[-1]))
+    for start in range(0, request.rays, chunk):
+        count = min(chunk, request.rays - start)
+        draws = torch.randn(batch, count, 2, generator=generator, dtype=torch.float64, device=generator.device)
+        yield start, (per_link(request.width, draws) * draws).to(device=tx.device, dtype=tx.dtype)
 
 
 def standard_error(result: MonteCarloLight, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver):

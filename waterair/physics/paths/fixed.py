@@ -19,10 +19,11 @@ from dataclasses import dataclass, replace
 
 import torch
 
-from waterair.core.validation import check_int, check_range
+from waterair.core.validation import check_int
 from waterair.physics.paths.newton import (
     NewtonOptions,
     call_compiled,
+    check_step_keys,
     fermat_terms,
     iterate_newton,
     newton_direction,
@@ -51,10 +52,7 @@ class FixedNewtonOptions:
 
     def __post_init__(self) -> None:
         check_int("iterations", self.iterations, 1, 100)
-        if self.tol is not None:
-            check_range("tol", self.tol, 0.0, 1.0, low_open=True)
-        check_range("armijo", self.armijo, 0.0, 0.5, low_open=True, high_open=True)
-        check_range("max_step", self.max_step, 0.0, low_open=True, unit="m")
+        check_step_keys(self.tol, self.armijo, self.max_step)
 
     def tolerance(self, dtype: torch.dtype) -> float:
         """The convergence threshold on |∇L| for ``dtype`` (defaults as in :class:`NewtonOptions`)."""

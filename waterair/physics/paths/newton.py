@@ -44,11 +44,17 @@ class NewtonOptions:
 
     def __post_init__(self) -> None:
         check_int("max_iter", self.max_iter, 1, 10_000)
-        if self.tol is not None:
-            check_range("tol", self.tol, 0.0, 1.0, low_open=True)
-        check_range("armijo", self.armijo, 0.0, 0.5, low_open=True, high_open=True)
         check_int("max_backtracks", self.max_backtracks, 0, 60)
-        check_range("max_step", self.max_step, 0.0, low_open=True, unit="m")
+        check_step_keys(self.tol, self.armijo, self.max_step)
+
+
+def check_step_keys(tol: float | None, armijo: float, max_step: float) -> None:
+    """Validate the keys every Newton solver has (:class:`NewtonOptions`, ``FixedNewtonOptions``): ``tol`` in
+    (0, 1] or None, ``armijo`` in (0, 0.5) and ``max_step`` > 0 (m)."""
+    if tol is not None:
+        check_range("tol", tol, 0.0, 1.0, low_open=True)
+    check_range("armijo", armijo, 0.0, 0.5, low_open=True, high_open=True)
+    check_range("max_step", max_step, 0.0, low_open=True, unit="m")
 
 
 class FermatTerms(NamedTuple):

@@ -109,15 +109,9 @@ class ElfouhailySea(SeaState):
         k = torch.exp(log_k)
         return torch.trapezoid(self.wavenumber_spectrum(k) * k, log_k).item()
 
-    def slope_variances(self, wind: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Batched :meth:`mean_square_slope`: resolved up/crosswind, unresolved up/crosswind, each float64 ``[n]``.
-
-        Args: wind U10 (m/s) ``[n]``, one sea per entry (this sea's other parameters).
-        """
-        wind = wind.to(torch.float64)
-        zero = torch.zeros_like(wind)
-        if self.flat:
-            return zero, zero, zero, zero.clone()
+    def resolved_slope_variances(self, wind: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Up- and crosswind slope variance of the harmonics: the trapezoid rule of k² S(k) over the band's
+        log-spaced wavenumbers, shared out by the discrete directions (docs/model.md §1.4)."""
         edges = self.wavenumber_bins(torch.float64, wind=wind)
         low = edges[:, 0]
         high = edges[:, -1]
@@ -129,9 +123,7 @@ class ElfouhailySea(SeaState):
         along, across = discrete_direction_factors(
             self._elfouhaily_weights(k, speed), self.directions(torch.float64).theta
         )
-        resolved_up = torch.trapezoid(slope_density * along, log_k)
-        resolved_cross = torch.trapezoid(slope_density * across, log_k)
-        return (resolved_up, resolved_cross, *self.unresolved_slope_variances(wind))
+        return torch.trapezoid(slope_density * along, log_k), torch.trapezoid(slope_density * across, log_k)
 
     def unresolved_slope_variances(self, wind: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Up- and crosswind slope variance beyond :meth:`resolved_cutoff`, each float64 ``[n]``.

@@ -119,15 +119,9 @@ class JonswapSea(SeaState):
             total += self.alpha * GRAVITY**2 / (4.0 * max(low, top) ** 4)
         return total
 
-    def slope_variances(self, wind: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Batched :meth:`mean_square_slope`: resolved up/crosswind, unresolved up/crosswind, each float64 ``[n]``.
-
-        Args: wind U10 (m/s) ``[n]``, one sea per entry (this sea's other parameters).
-        """
-        wind = wind.to(torch.float64)
-        zero = torch.zeros_like(wind)
-        if self.flat:
-            return zero, zero, zero, zero.clone()
+    def resolved_slope_variances(self, wind: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Up- and crosswind slope variance of the harmonics: the trapezoid rule of k² S(ω) over the band
+        [0.6, 6] ω_p, shared out by the discrete directions (docs/model.md §1.4)."""
         omega_p = jonswap_omega_p(wind, self.fetch).unsqueeze(-1)
         fraction = torch.linspace(BAND_LOW, BAND_HIGH, QUADRATURE_POINTS, dtype=torch.float64)
         omega = fraction * omega_p
@@ -136,7 +130,7 @@ class JonswapSea(SeaState):
         along, across = discrete_direction_factors(
             self._jonswap_weights(omega, omega_p), self.directions(torch.float64).theta
         )
-        return torch.trapezoid(density * along, omega), torch.trapezoid(density * across, omega), zero, zero.clone()
+        return torch.trapezoid(density * along, omega), torch.trapezoid(density * across, omega)
 
     def _jonswap_weights(self, omega: torch.Tensor, omega_p) -> torch.Tensor:
         """Direction weights ``[..., n_dir]`` of the JONSWAP spreading at ``omega``, summing to 1."""

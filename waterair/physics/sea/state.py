@@ -47,7 +47,7 @@ class SeaState:
 
     A sea implements :attr:`n_bins`, :meth:`bin_edges` and :meth:`harmonics` (how
     :meth:`waterair.physics.surface.WaveSurface.sample` cuts it into harmonics), :meth:`m0` and
-    :meth:`slope_variances`; :attr:`spectrum` is its name and :attr:`two_scale` whether it carries
+    :meth:`resolved_slope_variances`; :attr:`spectrum` is its name and :attr:`two_scale` whether it carries
     unresolved slopes.
     """
 
@@ -91,7 +91,19 @@ class SeaState:
         raise NotImplementedError
 
     def slope_variances(self, wind: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Resolved up/crosswind, unresolved up/crosswind slope variance, each float64 ``[n]`` (wind ``[n]``, m/s)."""
+        """Batched :meth:`mean_square_slope`: resolved up/crosswind, unresolved up/crosswind, each float64 ``[n]``.
+
+        Args: wind U10 (m/s) ``[n]``, one sea per entry (this sea's other parameters). A flat sea holds none.
+        """
+        wind = wind.to(torch.float64)
+        if self.flat:
+            zero = torch.zeros_like(wind)
+            return zero, zero, zero, zero.clone()
+        return (*self.resolved_slope_variances(wind), *self.unresolved_slope_variances(wind))
+
+    def resolved_slope_variances(self, wind: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Up- and crosswind slope variance of the sampled harmonics (their expectation over realisations), each
+        float64 ``[n]``, for a sea that is not flat (wind float64 ``[n]``, m/s)."""
         raise NotImplementedError
 
     def unresolved_slope_variances(self, wind: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

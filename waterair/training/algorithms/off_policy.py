@@ -6,17 +6,20 @@ transition goes to the replay buffer, and each update samples from all of it (do
 
 from __future__ import annotations
 
+from abc import abstractmethod
 from typing import ClassVar
 
 import torch
+from hydra.utils import instantiate
 from omegaconf import DictConfig
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule, TensorDictSequential
 from torchrl.modules import AdditiveGaussianModule, OrnsteinUhlenbeckProcessModule, ValueOperator
+from torchrl.objectives import SoftUpdate
 
 from waterair.agents.networks import make_critic
 from waterair.core.validation import check_range
-from waterair.training.algorithms.base import Algorithm, Counters, Learn, Update, updates_per_batch
+from waterair.training.algorithms.base import Algorithm, Counters, Learn, Update, adam, updates_per_batch
 
 TRANSITION_KEYS = (
     "observation",
@@ -35,6 +38,11 @@ class OffPolicy(Algorithm):
     on_policy = False
     value_loss: ClassVar[str]
     """The loss entry of the critic(s)."""
+
+    @property
+    @abstractmethod
+    def value_params(self) -> str:
+        """The loss's attribute that holds the critic(s)' parameters (a class attribute of each algorithm)."""
 
     @classmethod
     def check(cls, cfg: DictConfig) -> None:
@@ -79,6 +87,20 @@ class OffPolicy(Algorithm):
                 device=device,
             )
         return TensorDictSequential(actor, noise), noise
+
+    def make_loss(self, actor, exploration, critic, env):
+        """The loss of the deterministic ``actor`` (not the noisy ``exploration``) with a TD(0) estimator at
+        ``agent.gamma``, and the ``SoftUpdate`` of its target networks at rate ``agent.tau``."""
+        loss = instantiate(self.cfg.agent.loss)(actor, critic, **self.loss_options(env))
+        loss.make_value_estimator(gamma=self.cfg.agent.gamma)
+        return loss, SoftUpdate(loss, tau=self.cfg.agent.tau)
+
+    def loss_options(self, env) -> dict:
+        """Further arguments of ``agent.loss``, from the environment: none."""
+        return {}
+
+    def make_optimisers(self, loss):
+        return adam(self.cfg, loss.actor_network_params, getattr(loss, self.value_params))
 
     def make_update(self, loss, target_update, optim_actor, optim_critic) -> Update:
         """One backward of the critic's and (every ``policy_delay`` updates) the actor's loss, both optimisers'

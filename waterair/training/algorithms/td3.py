@@ -8,12 +8,9 @@ are :class:`OffPolicy`'s.
 
 from __future__ import annotations
 
-from hydra.utils import instantiate
 from omegaconf import DictConfig
-from torchrl.objectives import SoftUpdate
 
 from waterair.core.validation import check_int, check_range
-from waterair.training.algorithms.base import adam
 from waterair.training.algorithms.off_policy import OffPolicy
 
 
@@ -22,6 +19,7 @@ class TD3(OffPolicy):
 
     loss_target = "torchrl.objectives.TD3Loss"
     value_loss = "loss_qvalue"
+    value_params = "qvalue_network_params"
 
     @classmethod
     def check(cls, cfg: DictConfig) -> None:
@@ -35,11 +33,6 @@ class TD3(OffPolicy):
     def policy_delay(self) -> int:
         return self.cfg.agent.policy_delay
 
-    def make_loss(self, actor, exploration, critic, env):
-        """The loss of the deterministic ``actor``, whose smoothed target actions stay in the action spec."""
-        loss = instantiate(self.cfg.agent.loss)(actor, critic, action_spec=env.action_spec_unbatched)
-        loss.make_value_estimator(gamma=self.cfg.agent.gamma)
-        return loss, SoftUpdate(loss, tau=self.cfg.agent.tau)
-
-    def make_optimisers(self, loss):
-        return adam(self.cfg, loss.actor_network_params, loss.qvalue_network_params)
+    def loss_options(self, env) -> dict:
+        """Its smoothed target actions stay in the action spec."""
+        return {"action_spec": env.action_spec_unbatched}
