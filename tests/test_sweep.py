@@ -23,7 +23,7 @@ from hydra_plugins.waterair_sweeps.search import search_space, trial_overrides
 from waterair.cli import training
 from waterair.cli.preflight import preflight
 from waterair.cli.sweep import main as rebuild
-from waterair.training.sweep import ERROR_FILE, LAUNCH_FILE, read_jobs
+from waterair.training.sweep import ERROR_FILE, LAUNCH_FILE, learning_curves, read_jobs
 
 
 def finished_job(root, number, ratio):
@@ -92,6 +92,15 @@ def test_the_summary_keeps_the_finished_jobs_and_marks_the_others_with_their_log
     assert (sweep / "learning_curves.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_jobs_that_logged_once_draw_their_learning_curves_without_a_warning(tmp_path, recwarn):
+    import numpy as np
+
+    curves = {"0": (np.array([400.0]), np.array([0.8])), "1": (np.array([400.0]), np.array([0.9]))}
+    png = learning_curves(curves, tmp_path / "curves.png")
+    assert png is not None and png.read_bytes()[:4] == b"\x89PNG"
+    assert not [str(w.message) for w in recwarn.list if "xlim" in str(w.message)]
+
+
 def test_a_sweep_that_finished_says_where_its_summary_is(sweep, capsys):
     for number in (2, 3, 4):
         for path in sorted((sweep / str(number)).rglob("*"), reverse=True):
@@ -131,7 +140,7 @@ def test_the_search_and_slurm_options_are_train_pys():
 def test_an_optuna_search_of_two_tiny_trials_writes_its_summary_and_best(tmp_path):
     done = subprocess.run(
         [sys.executable, "train.py", "-m", "hydra/sweeper=optuna", "hydra.sweeper.n_trials=2", "hydra.sweeper.n_jobs=1",
-         "hydra.sweeper.sampler.seed=0", *TINY, "total_frames=800", "agent.gamma=interval(0,0.3)",
+         "hydra.sweeper.sampler.seed=0", *TINY, "total_frames=400", "agent.gamma=interval(0,0.3)",
          "reward.pointing=interval(0,0.2)", "env/sea=choice(calm,rough)", f"hydra.sweep.dir={tmp_path}"],
         cwd=ROOT, capture_output=True, text=True, timeout=600, env={**os.environ, "OMP_NUM_THREADS": "1"},
     )  # fmt: skip

@@ -249,7 +249,8 @@ def learning_curves(curves: dict[str, tuple[np.ndarray, np.ndarray]], path: Path
         late.plot(frames[start:], values[start:], linewidth=0.8, alpha=0.8, label=f"job {job}")
     low, high = smooth[:, start:].min(), smooth[:, start:].max()
     margin = max(0.005, 0.1 * (high - low))
-    late.set_xlim(frames[start], frames[-1])
+    if frames[-1] > frames[start]:  # a run logged once has one point: matplotlib's own limits around it
+        late.set_xlim(frames[start], frames[-1])
     late.set_ylim(low - margin, high + margin)
     late.set_title("the last four fifths, scaled to the data", fontsize=10)
     late.legend(loc="lower right", fontsize=8, ncol=2)
