@@ -174,7 +174,10 @@ def compose_checked(config_name: str, overrides: Sequence[str]) -> DictConfig:
     if removal:
         raise CommandLineError(f"{removal.split('=')[0]} removes a key; set a value instead")
     config = _compose(config_name, overrides)
-    added = sorted(_keys(config) - _keys(_compose(config_name, groups)))
+    # Only '+key=value' and a mapping value ('key={...}') bring keys in (Hydra refuses an unknown 'key=value'):
+    # the second compose, half a second, runs only for those.
+    adding = [o for o in overrides if o not in groups and (o.startswith("+") or "{" in o)]
+    added = sorted(_keys(config) - _keys(_compose(config_name, groups))) if adding else []
     if added:
         raise CommandLineError(
             f"{added[0]} is not a config key; keys cannot be added, with or without '+' (every key is in "
