@@ -1,8 +1,14 @@
 """compile: auto compiles the step and the update only when the frames to go repay the compile."""
 
+import shutil
+
 import pytest
 from conftest import compose_config
 
+from waterair.core.compiling import graphs_kept, graphs_name, keep_graphs
+from waterair.envs.config import EnvConfig
+from waterair.evaluation.compiling import compiled_group, note_compiled
+from waterair.evaluation.runner import prepare
 from waterair.physics.channel import FullChannel, SinglePathChannel
 from waterair.training import validate
 from waterair.training.compiling import cache_state, compile_plan
@@ -49,3 +55,51 @@ def test_the_cache_is_warm_once_it_holds_compiled_graphs(tmp_path, monkeypatch):
     assert cache_state() == "cold"
     (tmp_path / "fxgraph" / "a2mk64").mkdir()
     assert cache_state() == "warm"
+
+
+def test_a_graphs_name_is_kept_once_noted_and_only_while_the_cache_holds_graphs(tmp_path, monkeypatch):
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
+    name = graphs_name("evaluation", {"a": 1})
+    assert name == graphs_name("evaluation", {"a": 1}) and name != graphs_name("evaluation", {"a": 2})
+    (tmp_path / "fxgraph" / "a2mk64").mkdir(parents=True)  # some graph: the cache is warm
+    assert not graphs_kept(name)
+    keep_graphs(name)
+    assert graphs_kept(name) and not graphs_kept(graphs_name("evaluation", {"a": 2}))
+    shutil.rmtree(tmp_path / "fxgraph")  # the cache cleared: nothing is kept, whatever was noted
+    assert not graphs_kept(name)
+
+
+@pytest.mark.parametrize("kept,frames,compiled", [(False, 400_000, False), (False, 600_000, True),
+                                                  (True, 30_000, False), (True, 40_000, True)])  # fmt: skip
+def test_an_evaluation_group_compiles_when_its_own_frames_repay_it(tmp_path, monkeypatch, kept, frames, compiled):
+    """Any graph in the cache (training's) does not make a group warm: only its own, noted when it compiled."""
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
+    (tmp_path / "fxgraph" / "a2mk64").mkdir(parents=True)
+    config = EnvConfig(num_envs=64, observation_extras=("spot", "spot_valid"))
+    if kept:  # a group of the same interface and physics, another width and divergence, ran compiled before
+        note_compiled(config.replace(num_envs=448, optics={"divergence": 0.005}, compile_kernel=True))
+    decided, why = compiled_group(config, frames)
+    assert decided.compile_kernel is compiled and decided.replace(compile_kernel=False) == config
+    least = FullChannel.evaluation_frames["warm" if kept else "cold"]
+    assert f"{frames:,} frames to go" in why and f"{least:,}" in why
+    # another interface's graphs are its own: never taken as this group's
+    other, _ = compiled_group(config.replace(observation_extras=()), 40_000)
+    assert other.compile_kernel is False
+
+
+def test_an_evaluation_decides_for_each_group_and_notes_the_groups_it_compiled(tmp_path, monkeypatch):
+    from test_evaluation import eval_cfg
+
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
+    (tmp_path / "fxgraph" / "a2mk64").mkdir(parents=True)
+    # two baselines and the paper's policy (its interface is theirs) in one group (96,288 frames), the other shipped
+    # policies one group each (32,096)
+    overrides = ("env.compile_kernel=auto", "baselines=[flat_snell,straight_facing]", "scenarios.S1.realisations=64",
+                 "scenarios.S1.steps=500")  # fmt: skip
+    plan = prepare(eval_cfg(*overrides))
+    assert [len(members) for _, members in plan.groups] == [3, 1, 1]
+    assert [config.compile_kernel for config, _ in plan.groups] == [False] * 3  # no group's graphs kept
+    note_compiled(plan.groups[0][0].replace(compile_kernel=True))
+    note_compiled(plan.groups[1][0].replace(compile_kernel=True))
+    kept = [config.compile_kernel for config, _ in prepare(eval_cfg(*overrides)).groups]
+    assert kept == [True, False, False]  # the policy's group is kept but its 32,096 frames do not repay it

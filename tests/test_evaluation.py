@@ -329,7 +329,7 @@ def test_one_batch_for_all_policies_gives_the_same_numbers_as_one_rollout_each(t
     # one progress line per rollout, each with its own duration: S1 and S2 × (the baselines and
     # controllers together, the policy with its own observation), or S1 and S2 × 8 policies one at a time
     assert len(lines[True]) == 2 * 2 and len(lines[False]) == 2 * 8
-    assert all(re.search(r": .+ in \d+ s$", line) for line in lines[True] + lines[False]), lines
+    assert all(re.search(r": .+ in \d+ s \(eager\)$", line) for line in lines[True] + lines[False]), lines
     assert len(results[0].rows) == len(results[1].rows) == (1 + 2) * 9
     for batched, alone in zip(results[0].rows, results[1].rows, strict=True):
         assert batched["policy"] == alone["policy"]

@@ -21,13 +21,13 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 
 from waterair.core.compiling import CHOICES as COMPILE_CHOICES
-from waterair.core.compiling import compiling_pays
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import CONTROLLERS
 from waterair.envs.link import link_budget
 from waterair.envs.stepper import varying_environments
+from waterair.evaluation.compiling import compiled_group, note_compiled
 from waterair.evaluation.divergence import at_divergence, outage_against_power, scenario_link
 from waterair.evaluation.metrics import phase_metrics, scenario_metrics
 from waterair.evaluation.per_divergence import labelled, name_policies, serving, trained_divergence
@@ -114,6 +114,7 @@ def compare_policies(
             scenario.steps,
             scenario.seed,
         )
+    note_compiled(env_config)
     first = next(iter(runs.values()))
     runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
     return {label: _point_metrics(t, 0, bootstrap, link, env_config.dt) for label, t in runs.items()}
@@ -164,10 +165,6 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
             raise ValueError(f"labels has {len(labels)} entries for {len(sources)} checkpoints")
         policies = [load_policy(p, labels[i] if labels else None) for i, p in enumerate(sources)]
     name_policies(policies, (*REFERENCES, UPPER_BOUND))
-    if compile_kernel == "auto":  # every policy, baseline and the bound roll out every scenario's points
-        per_policy = sum(len(s.points) * s.realisations * s.steps * max(1, len(s.divergences)) for s in scenarios)
-        frames = (len({p.label for p in policies}) + len(baselines) + 1) * per_policy
-        base = base.replace(compile_kernel=compiling_pays(frames, None, base.channel)[0])
     sensing = cfg.get("sensing", "trained")
     check_choice("sensing", sensing, SENSING)
     learned = []
@@ -184,6 +181,9 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
                 )
     together = bool(cfg.get("batch_policies", True))
     groups = _policy_groups(base, baselines, learned, together)
+    if compile_kernel == "auto":  # each group compiles when its own frames repay its graphs (evaluation/compiling.py)
+        per_policy = sum(len(s.points) * s.realisations * s.steps * max(1, len(s.divergences)) for s in scenarios)
+        groups = [(compiled_group(config, len(members) * per_policy)[0], members) for config, members in groups]
     return EvaluationPlan(scenarios, bootstrap, base, link, baselines, list(policies), learned, together, groups, links)
 
 
@@ -234,8 +234,10 @@ def _run(plan: EvaluationPlan, result: Evaluation, progress) -> None:
                 start = time.perf_counter()
                 env_config = at_divergence(env_config, divergence)
                 runs.update(rollout_policies(env_config, members, points, first.realisations, first.steps, first.seed))
+                note_compiled(env_config)
                 labels = ", ".join(label for label, _ in members)
-                progress(f"{what}: {labels} in {time.perf_counter() - start:.0f} s")
+                how = "compiled" if env_config.compile_kernel else "eager"
+                progress(f"{what}: {labels} in {time.perf_counter() - start:.0f} s ({how})")
             for scenario in batch:
                 index = torch.tensor([points.index(p) for p in scenario.points])
                 selected = {label: {k: v[:, index] for k, v in t.items()} for label, t in runs.items()}

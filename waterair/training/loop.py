@@ -22,6 +22,7 @@ from waterair.core.files import atomic_write_json, atomic_write_text
 from waterair.core.threads import AUTO as AUTO_THREADS
 from waterair.core.threads import choose_threads, torch_threads
 from waterair.envs.controllers import controller_for
+from waterair.evaluation.compiling import compiled_group
 from waterair.evaluation.metrics import FADE_FRACTION, METRICS
 from waterair.evaluation.runner import compare_policies, reading
 from waterair.evaluation.scenarios import Scenario
@@ -63,6 +64,7 @@ def _train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None]) -> d
         atomic_write_text(config_path, config_text)
     # Decide the compiles (auto: whether the frames to go repay them); config.yaml keeps the setting.
     frames_done = int(load_state(run_dir / CHECKPOINT)["frames"]) if resumed else 0
+    evaluation_compiles = str(cfg.env.compile_kernel).lower()  # auto: the closing evaluation decides its own
     cfg, compiles = compile_plan(cfg, cfg.total_frames - frames_done)
     progress(f"Running {compiles}")
 
@@ -132,7 +134,7 @@ def _train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None]) -> d
     clock = time.perf_counter()
     seas = f"{cfg.eval.realisations} seas × {cfg.eval.steps} steps"
     progress(f"Evaluating the greedy policy, the baselines and the classical controller on {seas} …")
-    metrics.update(final_evaluation(cfg, learner.policy()))
+    metrics.update(final_evaluation(cfg, learner.policy(), evaluation_compiles == "auto"))
     progress(f"Evaluated in {time.perf_counter() - clock:.0f} s")
     # The evaluation goes to TensorBoard and final_metrics.json; the CSV keeps one row per batch.
     log.scalars(counters.frames, {f"eval/{k}": v for k, v in metrics.items() if "/" in k}, csv_row=False)
@@ -172,12 +174,14 @@ def batch_scalars(
     return scalars
 
 
-def final_evaluation(cfg: DictConfig, actor) -> dict[str, float]:
+def final_evaluation(cfg: DictConfig, actor, auto_compile: bool = False) -> dict[str, float]:
     """The greedy actor, straight-facing and flat-Snell on the same seas at the training wind and offset.
 
     Evaluation's own runner and metrics (``eval`` group: realisations, steps, seed); keys are
     ``<policy>/<metric>`` with the policy ``agent``, ``straight_facing``, ``flat_snell``, the
-    classical controller (``aoa_tracker`` or ``intensity_dither``) or ``upper_bound``.
+    classical controller (``aoa_tracker`` or ``intensity_dither``) or ``upper_bound``. ``auto_compile``: each
+    group compiles when its frames repay it (:func:`waterair.evaluation.compiling.compiled_group`), else as
+    training ran.
     """
     geometry = cfg.env.geometry
     point = ((float(cfg.env.sea.wind), float(geometry.offset_ratio), float(geometry.offset_azimuth_deg)),)
@@ -191,6 +195,10 @@ def final_evaluation(cfg: DictConfig, actor) -> dict[str, float]:
     bare = config.replace(action_mode="absolute", residual_base="flat_snell", observation_extras=(), frames=1)
     reference = reading(bare, references)
     link = make_link(cfg, config)
+    if auto_compile:  # each of the two groups compiles when its own frames repay it, as in evaluate.py
+        frames = cfg.eval.realisations * cfg.eval.steps
+        reference = compiled_group(reference, frames * len(references))[0]
+        config = compiled_group(config, frames)[0]
     results = compare_policies(reference, references, scenario, link=link)
     results.update(compare_policies(config, {"agent": actor}, scenario, link=link))
     keep = (*METRICS, "mean_gain_lo", "mean_gain_hi")

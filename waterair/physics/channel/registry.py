@@ -45,6 +45,9 @@ class Channel:
     compile_frames: ClassVar[Mapping[str, int]] = MappingProxyType({"warm": 50_000, "cold": 300_000})
     """Frames of a run from which compiling its step repays the compile, with torch's compile cache warm or cold
     (the one-path channel's, measured in docs/benchmarks.md, "Training")."""
+    evaluation_frames: ClassVar[Mapping[str, int]] = compile_frames
+    """The same for a group of an evaluation, its graphs in torch's cache (warm) or not (cold): an evaluation's
+    batches are wider than training's, so an eager frame costs less there (the one path's: not measured apart)."""
     centroid_solver: ClassVar[bool] = False
     """Whether the paper's centroid path solver (``env.solver=centroid``) can serve it."""
 
@@ -61,6 +64,8 @@ class FullChannel(Channel):
 
     name = "full"
     compile_frames = MappingProxyType({"warm": 30_000, "cold": 40_000})  # about 100-130 s over 3.7 ms a frame
+    # a group's graphs: about 12 s to load or 100-220 s to compile, over 0.35 ms a frame (docs/benchmarks.md)
+    evaluation_frames = MappingProxyType({"warm": 35_000, "cold": 500_000})
     nodes: int = LATTICE_NODES
     span: float = LATTICE_SPAN
 
