@@ -103,3 +103,11 @@ def test_an_evaluation_decides_for_each_group_and_notes_the_groups_it_compiled(t
     note_compiled(plan.groups[1][0].replace(compile_kernel=True))
     kept = [config.compile_kernel for config, _ in prepare(eval_cfg(*overrides)).groups]
     assert kept == [True, False, False]  # the policy's group is kept but its 32,096 frames do not repay it
+
+
+def test_a_cache_folder_that_cannot_be_written_costs_a_compile_not_the_evaluation(tmp_path, monkeypatch):
+    blocked = tmp_path / "file"
+    blocked.write_text("")  # a file where the cache folder should be: nothing can be made below it
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(blocked))
+    keep_graphs(graphs_name("evaluation", {"a": 1}))
+    assert not graphs_kept(graphs_name("evaluation", {"a": 1}))

@@ -83,10 +83,14 @@ def graphs_kept(name: str) -> bool:
 
 
 def keep_graphs(name: str) -> None:
-    """Note that graphs named ``name`` are now in torch's compile cache."""
+    """Note that graphs named ``name`` are now in torch's compile cache (where the folder cannot be written, the
+    next program compiles them again: the note only saves time)."""
     folder = cache_folder() / "waterair"
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / name).touch()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / name).touch()
+    except OSError:
+        pass
 
 
 @functools.cache
