@@ -33,6 +33,7 @@ def bad_files(tmp_path):
 CASES = [
     ("train.py", "+foo=1", "foo is not a config key"),
     ("train.py", "foo=1", "foo is not a config key"),
+    ("train.py", "env.geometry={{offset_ratio:0.2,foo:1}}", "names a key env.geometry does not have"),
     ("train.py", "env.device=cuda", "env.device = 'cuda' is not available"),
     ("train.py", "resume={missing}", "does not exist"),
     ("train.py", "resume={tmp}", "is not a waterair run directory"),

@@ -190,6 +190,11 @@ def one_line(error: BaseException) -> str:
     """Hydra's or OmegaConf's multi-line message as one line, without the search-path dump."""
     text = str(error).split("\nConfig search path:")[0].split("\nSee https://")[0]
     missing = re.match(r"Could not override '([^']+)'", text)
+    if missing and re.search(r"use \+[^=]+=\{", text):  # a mapping value on a node that has the key
+        return (
+            f"{missing.group(1)}={{...}} names a key {missing.group(1)} does not have (check the spelling; keys "
+            f"cannot be added; every key is in docs/training.md)"
+        )
     if missing:
         return f"{missing.group(1)} is not a config key (check the spelling; every key is in docs/training.md)"
     option = re.search(r"Could not find '([^']+)/([^'/]+)'\s+Available options in '[^']+':\s+(.*)", text, re.S)
