@@ -24,7 +24,6 @@ from pathlib import Path
 from typing import Protocol
 
 CHOICES = ("auto", "true", "false")
-USES = ("training", "evaluation")
 
 
 class Compiles(Protocol):
@@ -38,7 +37,7 @@ class Compiles(Protocol):
 
 def compiling_pays(frames: int, cache: str | None, channel: Compiles, use: str = "training") -> tuple[bool, str]:
     """Whether ``frames`` env-steps on ``channel`` repay a compile, and a clause saying why (``cache``: warm or
-    cold; None: :func:`cache_state`; ``use``: one of :data:`USES`)."""
+    cold; None: :func:`cache_state`; ``use``: ``training``, else an evaluation's group)."""
     cache = cache or cache_state()
     least = (channel.compile_frames if use == "training" else channel.evaluation_frames)[cache]
     pays = frames >= least
