@@ -23,6 +23,11 @@ if os.environ.get("PYTEST_XDIST_WORKER"):  # workers share the cores: one torch 
 # shows.
 torch._inductor.config.cpp.vec_isa_ok = True
 os.environ["TORCHINDUCTOR_VEC_ISA_OK"] = "1"
+# The tests' graphs are emitted as scalar C++ loops: inductor's lowering, fusion and graphs are a user's, only the
+# loops are not written a second time with vector instructions, which took half of each compile (25 s against 11 s
+# for the full channel's reception, docs/benchmarks.md, "Tests"). What the tests show, that a graph is traced once
+# and computes what eager computes, does not depend on it; a user's compile and the benchmark's emit both.
+torch._inductor.config.cpp.simdlen = 1
 
 ROOT = Path(__file__).resolve().parents[1]
 """The repository root (where train.py, evaluate.py and conf/ live)."""
