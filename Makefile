@@ -13,14 +13,19 @@ WORKERS ?= 2
 
 install: $(STAMP)
 
-# pip writes no bytecode (it would compile file after file on one core); compileall then compiles every package
-# on all cores, as pip would have (files it cannot compile, a few packages' templates, are skipped as pip skips
-# them), so that imports need not compile anything, also where PYTHONDONTWRITEBYTECODE is set.
+# pip writes no bytecode (it would compile file after file on one core); compileall compiles every package as pip
+# would have (files it cannot compile, a few packages' templates, are skipped as pip skips them), so that imports
+# need not compile anything, also where PYTHONDONTWRITEBYTECODE is set. torch's and sympy's files, the most, are
+# compiled on one core while pip installs the rest on the other (pip touches neither again); then the rest, on all.
 $(STAMP): pyproject.toml
 	test -x $(PYTHON) || python3 -m venv $(VENV)
 	$(PYTHON) -m pip install --quiet --disable-pip-version-check --no-compile torch==2.13.0
-	$(PYTHON) -m pip install --quiet --disable-pip-version-check --no-compile -e '.[dev,gym]'
-	$(PYTHON) -m compileall -qq -j 0 $$($(PYTHON) -c 'import sysconfig; print(sysconfig.get_path("purelib"))') || true
+	@site=$$($(PYTHON) -c 'import sysconfig; print(sysconfig.get_path("purelib"))'); \
+	$(PYTHON) -m compileall -qq $$site/torch $$site/sympy > /dev/null 2>&1 & compiling=$$!; \
+	echo "$(PYTHON) -m pip install --quiet --disable-pip-version-check --no-compile -e '.[dev,gym]'"; \
+	$(PYTHON) -m pip install --quiet --disable-pip-version-check --no-compile -e '.[dev,gym]'; status=$$?; \
+	wait $$compiling; test $$status -eq 0 && echo "$(PYTHON) -m compileall -qq -j 0 $$site" && \
+	{ $(PYTHON) -m compileall -qq -j 0 $$site || true; }
 	touch $(STAMP)
 
 # Train into RUN, then evaluate that policy against the baselines into RUN/evaluation.
