@@ -3,12 +3,15 @@ so that a release which changes one is found by ``make test`` and not by a slow 
 a graph per batch, a step that runs eagerly after a wall of warnings). Traced with dynamo's counting backend:
 nothing here compiles code."""
 
+from collections.abc import Callable
+
 import pytest
 import torch
 from torch._dynamo.testing import CompileCounter
 
 from waterair.envs import stepper
 from waterair.envs.stepper import BATCH_SOURCES, MEMO_TYPES, RECOMPILE_LIMIT, varying_environments
+from waterair.physics.optics import traced
 
 
 def frames(function, calls) -> int:
@@ -19,6 +22,18 @@ def frames(function, calls) -> int:
     for arguments in calls:
         compiled(*arguments)
     return counter.frame_count
+
+
+def aot_eager_counted(counter: CompileCounter):
+    """AOT autograd with eager kernels (its passes run, nothing is compiled to code), counting graphs in
+    ``counter``."""
+    from torch._dynamo.backends.debugging import aot_eager
+
+    def backend(graph, example_inputs):
+        counter(graph, example_inputs)
+        return aot_eager(graph, example_inputs)
+
+    return backend
 
 
 def step(state):  # named as the kernel's input, so that BATCH_SOURCES names it
@@ -93,3 +108,34 @@ def test_the_inductor_cache_folder_is_where_the_compile_thresholds_look(monkeypa
     assert cache_dir() == default_cache_dir(), f"{name}: torch's cache is no longer its default_cache_dir()"
     monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
     assert cache_dir() == str(tmp_path), f"{name}: TORCHINDUCTOR_CACHE_DIR no longer sets torch's cache"
+
+
+def test_a_setting_the_step_reads_as_a_tensor_compiles_once_without_restarting(monkeypatch):
+    """A number the compiled step takes as an input (:func:`waterair.physics.optics.traced`: one element, in the
+    step's dtype) is a tensor to torch.compile: one graph serves every value, traced once. A 0-dim float64 CPU
+    tensor, read as a number too, made AOT's scalar pass restart the compile (the whole step traced twice);
+    seen here by the pass's record of the numbers it gave up on."""
+    from torch._dynamo.symbolic_convert import TensorifyState
+
+    name = "torch._dynamo.symbolic_convert.TensorifyState.specialize"
+    given_up, specialize = [], TensorifyState.specialize.__func__
+    monkeypatch.setattr(
+        TensorifyState, "specialize", classmethod(lambda cls, key: given_up.append(key) or specialize(cls, key))
+    )
+
+    def restarts(setting: Callable[[float], torch.Tensor]) -> tuple[int, int]:
+        TensorifyState.clear()
+        given_up.clear()
+        counter = CompileCounter()
+        compiled = torch.compile(lambda x, s: torch.where(x >= s, x * s, x), backend=aot_eager_counted(counter))
+        torch._dynamo.reset()
+        for value in (0.05, 0.2):
+            expected = torch.where(torch.ones(4) >= value, torch.ones(4) * value, torch.ones(4))
+            torch.testing.assert_close(compiled(torch.ones(4), setting(value)), expected)
+        return len(given_up), counter.frame_count
+
+    assert restarts(lambda v: traced(v, dtype=torch.float32)) == (0, 1), f"a one-element setting restarts ({name})"
+    assert restarts(lambda v: traced(v, dims=0))[0] > 0, (
+        f"{name} is no longer called for a 0-dim float64 input: this test no longer sees a restart (or 0-dim "
+        "settings no longer restart the compile, and traced() could make them so again)"
+    )

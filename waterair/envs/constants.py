@@ -72,16 +72,17 @@ class StepConstants:
         optics = self.optics.for_links(divergence)
         return replace(self, optics=optics, channel=replace(self.channel, optics=optics))
 
-    def traced(self, device: torch.device) -> StepConstants:
+    def traced(self, device: torch.device, dtype: torch.dtype) -> StepConstants:
         """These constants as the compiled step takes them: the numbers that differ between an evaluation's
-        environments as 0-dim tensors on ``device``: the sensor's noise levels and threshold
-        (:meth:`Sensor.traced`) and the residual's range (the beam divergence is each link's, from the state:
-        :meth:`for_links`). A graph then serves every value of them, and is the same graph whichever value a
-        process compiled first: a float would be compiled in, and compiled symbolic only once torch had seen it
-        change (in that process, or in an earlier one of the same job), so the graphs, and the compile cache
-        they could share between processes, depended on the order in which groups were run."""
+        environments as one-element tensors in ``dtype`` on ``device`` (:func:`~waterair.physics.optics.traced`):
+        the sensor's noise levels and thresholds (:meth:`Sensor.traced`) and the residual's range (the beam
+        divergence is each link's, from the state: :meth:`for_links`). A graph then serves every value of them,
+        and is the same graph whichever value a process compiled first: a float would be compiled in, and
+        compiled symbolic only once torch had seen it change (in that process, or in an earlier one of the same
+        job), so the graphs, and the compile cache they could share between processes, depended on the order in
+        which groups were run."""
         return replace(
             self,
-            sensor=self.sensor.traced(device),
-            residual=traced(self.residual, device),  # type: ignore[arg-type]  # a tensor only in the compiled step's copy
+            sensor=self.sensor.traced(device, dtype),
+            residual=traced(self.residual, device, dtype),  # type: ignore[arg-type]  # a tensor only in the compiled step's copy
         )

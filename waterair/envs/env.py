@@ -113,7 +113,12 @@ class WaterAirEnv(EnvBase):
         self._noise_keys = stream_keys(config.num_envs, config.replicas)
         self.constants = StepConstants.of(config, self.sensor, self.reward_fn, self.channel)
         self.stepper = Stepper(
-            self.constants, config.solver, config.compile_kernel, self._channel_generator, device=self.device
+            self.constants,
+            config.solver,
+            config.compile_kernel,
+            self._channel_generator,
+            device=self.device,
+            dtype=self.float_dtype,
         )
         columns = kernel.observation_columns(config)
         self._columns = None if columns is None else torch.tensor(columns, device=self.device)

@@ -191,13 +191,14 @@ class Sensor:
         self.noisy_beacon = bool(settings.beacon_noise_rad)
         self._noise_on = torch.tensor([self.noisy_intensity] * 2 + [self.noisy_spot] * 2 + [self.noisy_beacon] * 2)
 
-    def traced(self, device: torch.device) -> Sensor:
-        """This sensor as a compiled step takes it: its noise levels and spot threshold 0-dim float64 tensors on
-        ``device``, so that one graph serves every setting of them (as floats they would be compiled in, and a
-        group of policies with another sensor would compile the step again). Same readings, same draws."""
+    def traced(self, device: torch.device, dtype: torch.dtype) -> Sensor:
+        """This sensor as a compiled step takes it: its noise levels and thresholds one-element tensors in
+        ``dtype`` on ``device`` (:func:`~waterair.physics.optics.traced`), so that one graph serves every setting of
+        them (as floats they would be compiled in, and a group of policies with another sensor would compile the
+        step again). Same readings, same draws."""
         copy = shallow_copy(self)
         for name in TRACED_SETTINGS:
-            setattr(copy, name, traced(getattr(self, name), device))
+            setattr(copy, name, traced(getattr(self, name), device, dtype))
         return copy
 
     def draw(self, keys: torch.Tensor, dtype: torch.dtype, device: torch.device) -> torch.Tensor | None:

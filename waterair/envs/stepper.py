@@ -90,13 +90,14 @@ class Stepper:
         compile_kernel: bool,
         generator: torch.Generator | None = None,
         device: torch.device | str = "cpu",
+        dtype: torch.dtype = torch.float32,
     ):
         self.constants, self.solver, self.compile_kernel = constants, solver, compile_kernel
         self.generator = generator
         pick = compiled if compile_kernel else functools.partial(getattr, kernel)
         self._step, self._finish, self._conclude = pick("step"), pick("finish"), pick("conclude")
         # what the compiled functions get: the numbers that vary between environments as tensors (one graph)
-        self.traced = constants.traced(torch.device(device)) if compile_kernel else constants
+        self.traced = constants.traced(torch.device(device), dtype) if compile_kernel else constants
         self.finishing = FixedNewtonOptions(
             iterations=FINISH_ITERATIONS,
             tol=constants.tolerance,

@@ -48,10 +48,18 @@ def per_link(value: Scalar, like: torch.Tensor) -> Scalar:
     return value
 
 
-def traced(value: float, device: torch.device | str | None = None) -> torch.Tensor:
-    """``value`` as a compiled step takes a number that differs between environments: a 0-dim float64 tensor
-    on ``device``, an input of the graph (a float would be compiled in as a constant, one graph per value)."""
-    return torch.tensor(float(value), dtype=torch.float64, device=device)
+def traced(
+    value: float, device: torch.device | str | None = None, dtype: torch.dtype = torch.float64, dims: int = 1
+) -> torch.Tensor:
+    """``value`` as a compiled step takes a number that differs between environments: a tensor on ``device``, an
+    input of the graph (a float would be compiled in as a constant, one graph per value).
+
+    One element in one dimension by default, in the ``dtype`` the step computes in (it takes part in type
+    promotion as a tensor, not as a number), so that it acts as the number would against a link's values. A
+    0-dim float64 tensor on the CPU (``dims=0``), which promotes as a number, is also read by torch.compile as
+    one, which inductor then turns back into a tensor by restarting the compile: each first compile traced its
+    graph twice."""
+    return torch.tensor(float(value), dtype=dtype, device=device).reshape((1,) * dims)
 
 
 def critical_angle(n1: float = N_WATER, n2: float = N_AIR) -> float:

@@ -110,8 +110,9 @@ class Transceiver:
     def traced(self, device: torch.device | str | None = None) -> Transceiver:
         """This transceiver with ω_D a 0-dim float64 tensor on ``device``, as a compiled step takes it: a graph
         then reads the beam divergence as an input and serves every divergence (a float would be compiled in
-        as a constant, and each new divergence would compile the step again). Same values, same checks."""
-        return replace(self, divergence=traced(self.divergence, device))  # type: ignore[arg-type]  # ω_D a tensor
+        as a constant, and each new divergence would compile the step again). Same values, same checks. 0-dim,
+        as a one-element ω_D would read as one link's (:meth:`rows`)."""
+        return replace(self, divergence=traced(self.divergence, device, dims=0))  # type: ignore[arg-type]
 
     def for_links(self, divergence: torch.Tensor) -> Transceiver:
         """This transceiver with each link's own beam divergence ω_D ``[B]`` (rad, as drawn at its reset): every
