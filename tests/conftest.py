@@ -28,6 +28,10 @@ os.environ["TORCHINDUCTOR_VEC_ISA_OK"] = "1"
 # for the full channel's reception, docs/benchmarks.md, "Tests"). What the tests show, that a graph is traced once
 # and computes what eager computes, does not depend on it; a user's compile and the benchmark's emit both.
 torch._inductor.config.cpp.simdlen = 1
+# Each worker compiles in its own process, one core each: a pool of compile processes (torch's default, one per
+# core) would start and import torch in every worker only to share the same two cores.
+torch._inductor.config.compile_threads = 1
+os.environ["TORCHINDUCTOR_COMPILE_THREADS"] = "1"
 
 ROOT = Path(__file__).resolve().parents[1]
 """The repository root (where train.py, evaluate.py and conf/ live)."""
