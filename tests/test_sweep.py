@@ -11,7 +11,7 @@ from pathlib import Path
 
 import optuna
 import pytest
-from conftest import ROOT, TINY, compose_config
+from conftest import ONE_PATH, ROOT, TINY, compose_config
 from hydra import initialize_config_dir
 from hydra.core.global_hydra import GlobalHydra
 from hydra.core.override_parser.overrides_parser import OverridesParser
@@ -140,7 +140,7 @@ def test_the_search_and_slurm_options_are_train_pys():
 def test_an_optuna_search_of_two_tiny_trials_writes_its_summary_and_best(tmp_path):
     done = subprocess.run(
         [sys.executable, "train.py", "-m", "hydra/sweeper=optuna", "hydra.sweeper.n_trials=2", "hydra.sweeper.n_jobs=1",
-         "hydra.sweeper.sampler.seed=0", *TINY, "total_frames=400", "agent.gamma=interval(0,0.3)",
+         "hydra.sweeper.sampler.seed=0", *TINY, *ONE_PATH, "total_frames=400", "agent.gamma=interval(0,0.3)",
          "reward.pointing=interval(0,0.2)", "env/sea=choice(calm,rough)", f"hydra.sweep.dir={tmp_path}"],
         cwd=ROOT, capture_output=True, text=True, timeout=600, env={**os.environ, "OMP_NUM_THREADS": "1"},
     )  # fmt: skip
@@ -282,8 +282,9 @@ def test_a_search_of_three_trials_two_failing_tells_them_failed_and_summarises_t
     with pytest.raises(SystemExit) as stop:
         multirun(ROOT / "conf", "config", entry_point.main,
                  ["hydra/sweeper=optuna", "hydra.sweeper.n_trials=3", "hydra.sweeper.n_jobs=1",
-                  f"hydra.sweeper.storage={storage}", "hydra.sweeper.study_name=gamma", *TINY, "total_frames=800",
-                  "agent.gamma=choice(0.1,1.5,2.0)", f"hydra.sweep.dir={sweep}"], job_name="train")  # fmt: skip
+                  f"hydra.sweeper.storage={storage}", "hydra.sweeper.study_name=gamma", *TINY, *ONE_PATH,
+                  "total_frames=800", "agent.gamma=choice(0.1,1.5,2.0)", f"hydra.sweep.dir={sweep}"],
+                 job_name="train")  # fmt: skip
     message = str(stop.value.code)
     assert message.startswith("error: 2 of 3 jobs did not finish: job 0 (agent.gamma=1.5) failed: ValueError: ")
     assert "job 2 (agent.gamma=2.0) failed: ValueError: agent.gamma = 2.0 is out of range" in message

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 import torch
-from conftest import ROOT, TINY, compose_config, machine, rejection
+from conftest import ONE_PATH, ROOT, TINY, compose_config, machine, rejection
 from omegaconf import OmegaConf
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
@@ -271,6 +271,7 @@ def test_a_sweep_with_a_failed_job_summarises_the_others_and_exits_with_one_line
     done = run_cli(
         "-m",
         *TINY,
+        *ONE_PATH,
         "total_frames=800",
         "buffer=memmap",
         scratch,
