@@ -9,7 +9,10 @@ import pytest
 import torch
 from torch._dynamo.testing import CompileCounter
 
+from tests.conftest import paper_physics
 from waterair.envs import stepper
+from waterair.envs.env import WaterAirEnv
+from waterair.envs.sensors import TRACED_SETTINGS
 from waterair.envs.stepper import BATCH_SOURCES, MEMO_TYPES, RECOMPILE_LIMIT, varying_environments
 from waterair.physics.optics import traced
 
@@ -139,3 +142,15 @@ def test_a_setting_the_step_reads_as_a_tensor_compiles_once_without_restarting(m
         f"{name} is no longer called for a 0-dim float64 input: this test no longer sees a restart (or 0-dim "
         "settings no longer restart the compile, and traced() could make them so again)"
     )
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_every_setting_the_compiled_step_reads_is_a_one_element_tensor_in_its_dtype(dtype):
+    """What the test above requires, for each number the compiled step's constants carry as a tensor."""
+    env = WaterAirEnv(num_envs=2, seed=0, dtype=dtype, intensity_noise=0.1, **paper_physics(n_freq=8, n_dir=4))
+    constants = env.constants.traced(torch.device("cpu"), env.float_dtype)
+    settings = {name: getattr(constants.sensor, name) for name in TRACED_SETTINGS} | {"residual": constants.residual}
+    assert {name: (value.shape, value.dtype) for name, value in settings.items()} == {
+        name: ((1,), env.float_dtype) for name in settings
+    }
+    assert settings["intensity_noise"].item() == pytest.approx(0.1)
