@@ -1,7 +1,7 @@
 """The torch and tensordict internals the compiled step relies on, each guarded by a test whose failure names it,
 so that a release which changes one is found by ``make test`` and not by a slow run (an evaluation that compiles
-a graph per batch, a step that runs eagerly after a wall of warnings). Traced with dynamo's counting backend:
-nothing here compiles code."""
+a graph per batch, a step that runs eagerly after a wall of warnings). Traced with dynamo's counting backend
+or AOT autograd's eager one: nothing here compiles code."""
 
 from collections.abc import Callable
 
