@@ -62,6 +62,13 @@ def eager_path_kernels(monkeypatch):
     monkeypatch.setattr(fixed, "compiled_fixed_newton", lambda: fixed.fixed_newton_terms)
 
 
+@pytest.fixture
+def one_ascent_iteration(monkeypatch):
+    """The upper bound's ascent takes one iteration from each start: the same code, unrolled once rather than
+    UPPER_BOUND_ITERATIONS times, a smaller graph to trace and compile."""
+    monkeypatch.setattr(light_module, "upper_bound", functools.partial(light_module.upper_bound, iterations=1))
+
+
 def rollout(env: WaterAirEnv, actions: torch.Tensor) -> dict[str, torch.Tensor]:
     td, trace = env.reset(), {key: [] for key in COMPARED}
     for action in actions:
@@ -144,13 +151,14 @@ sea (the defaults)."""
 @pytest.mark.slow
 @pytest.mark.parametrize("part", ["light", "reception"])
 @pytest.mark.parametrize("model", list(FULL_CHANNEL))
-def test_the_full_channels_light_and_reception_compile_to_what_they_measure_eagerly(model, part, monkeypatch, inductor):
+def test_the_full_channels_light_and_reception_compile_to_what_they_measure_eagerly(
+    model, part, inductor, one_ascent_iteration
+):
     """An environment on the full channel steps as the ones above but for the channel's light and reception (that
     its step traces into one graph is tested below and in tests/test_channel_models.py): each, compiled by
     inductor on its own with ω_D a tensor as the step compiles them, gives on a wavy sea with both ends off the
     path what it gives eagerly, to float32 rounding. The upper bound's ascent takes one iteration from each start
     (the same code, unrolled once rather than UPPER_BOUND_ITERATIONS times)."""
-    monkeypatch.setattr(light_module, "upper_bound", functools.partial(light_module.upper_bound, iterations=1))
     kind, sea = FULL_CHANNEL[model]
     channel, batch = kind(Transceiver()), 4
     surface = WaveSurface.sample(sea_state(**{"spectrum": "jonswap", **sea}), batch, seed=1)
@@ -230,7 +238,9 @@ copies of each link (a group's policies), the sensor's noise levels and threshol
 
 
 @pytest.mark.slow
-def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(monkeypatch, eager_path_kernels):
+def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(
+    monkeypatch, eager_path_kernels, one_ascent_iteration
+):
     """Inside ``varying_environments`` (what an evaluation runs in) environments of one structure share one
     step graph, whichever of them compiles first: nothing in the step fixes the batch size (a tensorclass
     sliced as a whole did), the graph reads ω_D, the sensor's noise levels and threshold and the residual's
@@ -249,8 +259,6 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(
         return traced.setdefault(name, torch.compile(getattr(kernel, name), backend=counter))
 
     monkeypatch.setattr(stepper, "compiled", counted)
-    # the bound's ascent unrolled once rather than UPPER_BOUND_ITERATIONS times: the same code, a smaller trace
-    monkeypatch.setattr(light_module, "upper_bound", functools.partial(light_module.upper_bound, iterations=1))
     torch._dynamo.reset()
     gains = []
     with stepper.varying_environments():

@@ -90,7 +90,8 @@ class Stepper:
         compile_kernel: bool,
         generator: torch.Generator | None = None,
         device: torch.device | str = "cpu",
-        dtype: torch.dtype = torch.float32,
+        *,
+        dtype: torch.dtype,
     ):
         self.constants, self.solver, self.compile_kernel = constants, solver, compile_kernel
         self.generator = generator
