@@ -5,11 +5,11 @@ PYTHON := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= outputs
 RUN    ?= $(OUT)/train/$(shell date +%Y-%m-%d/%H-%M-%S)
-SOURCES := waterair hydra_plugins tests train.py evaluate.py
+SOURCES := waterair hydra_plugins tests scripts train.py evaluate.py
 # pytest-xdist workers, one torch thread each (docs/benchmarks.md, "Tests")
 WORKERS ?= 2
 
-.PHONY: install train evaluate test test-fast figures bench slurm-check clean
+.PHONY: install train evaluate test test-fast figures bench slurm-check cuda-check clean
 
 install: $(STAMP)
 
@@ -76,6 +76,11 @@ bench: $(STAMP)
 # through hydra/launcher=submitit_slurm and check them, then stop what it started (scripts/slurm_check.sh).
 slurm-check: $(STAMP)
 	scripts/slurm_check.sh
+
+# On a machine with a CUDA GPU: CUDA against the CPU, compiled against eager, a tiny training and evaluation, and
+# the GPU's benchmarks (scripts/cuda_check.py; OUT/cuda_check/*.json, exit 1 if a part fails). CI has no GPU.
+cuda-check: $(STAMP)
+	$(PYTHON) scripts/cuda_check.py --out $(OUT)/cuda_check
 
 clean:
 	rm -rf $(VENV) *.egg-info .pytest_cache .ruff_cache
