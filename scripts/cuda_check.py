@@ -6,7 +6,7 @@ a run cut short keeps the rest:
   1. ``agree``: the defaults' environment and the paper's (``+experiment=paper``), eager, on the CPU and on CUDA
      from the same seed and actions: float64 to 1e-9 relative, float32 to 1e-4;
   2. ``compiled``: the defaults' environment compiled on CUDA against itself eager, link by link;
-  3. ``train``: a tiny train.py run on CUDA (networks, updates, environment and its closing evaluation);
+  3. ``train``: a short train.py run on CUDA (networks, updates, environment and its closing evaluation);
   4. ``bench``: env-steps/s at B = 1024 and 65,536 of the paper's one path compiled and the defaults' full
      channel eager and compiled (:func:`waterair.bench.env.run_worker`, each point in a fresh process);
   5. ``montecarlo``: the local estimate's rays/s (``python -m waterair.bench montecarlo``);
@@ -40,19 +40,8 @@ from waterair.envs.config import EnvConfig  # noqa: E402
 from waterair.envs.env import WaterAirEnv  # noqa: E402
 
 COMPARED = ("observation", "gain", "gain_upper_bound", "intensity", "reward", "path_valid")
-TINY = [
-    "env.num_envs=8",
-    "env.max_steps=50",
-    "total_frames=1600",
-    "collector.frames_per_batch=400",
-    "collector.init_random_frames=400",
-    "checkpoint.every_frames=800",
-    "eval.realisations=4",
-    "eval.steps=20",
-    "logger.progress_bar=false",
-    "compile_update=false",
-    "env.compile_kernel=false",
-]
+SHORT = ["total_frames=3200", "eval.realisations=4", "eval.steps=20", "logger.progress_bar=false"]
+"""train.py's defaults, shortened: two of the default collector's batches, a small closing evaluation."""
 
 
 def env_config(overrides: list[str], batch: int, dtype: str, device: str, compile_kernel: bool) -> EnvConfig:
@@ -145,7 +134,7 @@ def part_train(device: str, out: Path) -> dict:
     run = out / "train_run"
     start = time.perf_counter()
     trained = subprocess.run(
-        [sys.executable, "train.py", f"device={device}", *TINY, f"hydra.run.dir={run}"],
+        [sys.executable, "train.py", f"device={device}", *SHORT, f"hydra.run.dir={run}"],
         cwd=ROOT,
         capture_output=True,
         text=True,
