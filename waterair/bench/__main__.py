@@ -12,8 +12,8 @@ meaningful. Timings are wall-clock medians after a warm-up.
 * ``training``: a DDPG update against bare PyTorch; train.py's frames per second (collection,
   update, whole loop; short and long runs, eager and compiled) against Stable-Baselines3 DDPG on our
   Gymnasium view, and quiet against beside a busy process (:mod:`.training`).
-* ``quality``: wall time to a greedy 0.95 of the upper bound at the S1 point, ours against
-  Stable-Baselines3 DDPG, measured in one run (:mod:`.quality`).
+* ``quality``: wall time to a greedy 0.95 of the upper bound at the S1 point on the defaults, ours against
+  Stable-Baselines3 DDPG and PPO, measured in one run (:mod:`.quality`).
 * ``summary``: the speed targets as ratios, from the JSON files of the suites above (:mod:`.summary`).
 * ``census``: refraction points per link on the measured-slope sea, their spread and the brightest
   point's share of the power (:mod:`.census`).
@@ -110,12 +110,13 @@ def main(argv: list[str] | None = None) -> int:
         metavar="KEY=VALUE",
         help="a train.py override for every run, SB3's included (repeatable), e.g. env/channel=single_path",
     )
-    quality = sub.add_parser("quality", help="wall time to a greedy 0.95 of UB: ours vs Stable-Baselines3 DDPG")
+    quality = sub.add_parser("quality", help="wall time to a greedy 0.95 of UB: ours vs Stable-Baselines3")
     quality.add_argument("--budgets", type=int, nargs="+", default=[1600, 8000, 40000], help="our runs' frames")
     quality.add_argument(
         "--flat-budgets", type=int, nargs="+", default=[40000, 80000, 160000], help="frames, flat-Snell base runs"
     )
-    quality.add_argument("--sb3-frames", type=int, default=80_000, help="Stable-Baselines3 DDPG frames at most")
+    quality.add_argument("--sb3-frames", type=int, default=80_000, help="frames of each Stable-Baselines3 run at most")
+    quality.add_argument("--eager", action="store_true", help="also our pipeline eager, on each base")
     quality.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
     census = sub.add_parser("census", help="refraction points per link on the measured-slope sea (float64)")
     census.add_argument("--winds", type=float, nargs="+", default=[4.0, 12.0, 20.0], help="U10 (m/s)")
@@ -170,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
         print(training_table(record))
     elif args.suite == "quality":
         record = {"machine": machine(torch.device("cpu"), torch.float32)}
-        record.update(bench_quality(args.budgets, args.flat_budgets, args.sb3_frames))
+        record.update(bench_quality(args.budgets, args.flat_budgets, args.sb3_frames, args.eager))
         print(quality_table(record))
     elif args.suite == "census":
         print(census_table({"rows": []}))

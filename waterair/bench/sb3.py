@@ -1,7 +1,7 @@
-"""Stable-Baselines3 DDPG on our Gymnasium view, matched to a training config: the one reference
-pipeline the training and time-to-quality suites compare with.
+"""Stable-Baselines3 DDPG and PPO on our Gymnasium view, matched to a training config: the reference
+pipelines the training and time-to-quality suites compare with.
 
-Stable-Baselines3 is not a dependency: :func:`sb3_ddpg` returns None when it does not import.
+Stable-Baselines3 is not a dependency: :func:`sb3_ddpg` and :func:`sb3_ppo` return None when it does not import.
 """
 
 from __future__ import annotations
@@ -28,14 +28,10 @@ def sb3_ddpg(cfg: DictConfig, seed: int = 0):
         return None
     import numpy as np
 
-    from waterair.envs.gym import WaterAirGymEnv
-
     ratio = Fraction(cfg.collector.updates_per_frame).limit_denominator(64)  # 0.15625: 5 updates every 32 steps
-    reward = Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True))
-    env = WaterAirGymEnv(env_config(cfg, compile_kernel=False), reward=reward, seed=seed)
     return DDPG(
         "MlpPolicy",
-        env,
+        _gym_env(cfg, seed),
         learning_rate=cfg.critic.lr,
         buffer_size=cfg.buffer.capacity,
         learning_starts=cfg.buffer.batch_size,
@@ -51,8 +47,55 @@ def sb3_ddpg(cfg: DictConfig, seed: int = 0):
     )
 
 
+def sb3_ppo(cfg: DictConfig, seed: int = 0):
+    """A Stable-Baselines3 PPO model on one link of ``cfg``'s environment (eager step), matched to ``agent=ppo``:
+    a rollout of ``collector.frames_per_batch`` steps, passes over it as ``collector.updates_per_frame`` gives in
+    minibatches of ``buffer.batch_size``, ``actor.lr``, discount, GAE's λ, clip range, advantage normalisation,
+    critic coefficient, gradient-norm clip, target KL, no entropy bonus, the actor's and critic's hidden layers,
+    and a learned state-independent log-σ starting at ln ``noise.sigma_init``; None without Stable-Baselines3."""
+    try:
+        from stable_baselines3 import PPO
+    except ImportError:
+        return None
+    import math
+
+    frames, batch = cfg.collector.frames_per_batch, cfg.buffer.batch_size
+    loss = cfg.agent.loss
+    return PPO(
+        "MlpPolicy",
+        _gym_env(cfg, seed),
+        learning_rate=cfg.actor.lr,
+        n_steps=frames,
+        batch_size=batch,
+        n_epochs=max(1, round(cfg.collector.updates_per_frame * batch)),  # 0.15625 × 64 = 10 passes
+        gamma=cfg.agent.gamma,
+        gae_lambda=cfg.agent.lmbda,
+        clip_range=loss.clip_epsilon,
+        normalize_advantage=loss.normalize_advantage,
+        ent_coef=0.0,
+        vf_coef=loss.critic_coeff,
+        max_grad_norm=cfg.agent.max_grad_norm,
+        target_kl=cfg.agent.target_kl,
+        policy_kwargs={
+            "net_arch": {"pi": list(cfg.actor.hidden), "vf": list(cfg.critic.hidden)},
+            "log_std_init": math.log(cfg.noise.sigma_init),
+        },
+        device="cpu",
+        seed=seed,
+    )
+
+
+def _gym_env(cfg: DictConfig, seed: int):
+    """One link of ``cfg``'s environment, eager, as a Gymnasium env with ``cfg``'s reward."""
+    from waterair.envs.gym import WaterAirGymEnv
+
+    reward = Reward.from_mapping(OmegaConf.to_container(cfg.reward, resolve=True))
+    return WaterAirGymEnv(env_config(cfg, compile_kernel=False), reward=reward, seed=seed)
+
+
 class SB3Actor(TensorDictModuleBase):
-    """A Stable-Baselines3 deterministic actor as a TensorDict policy (``observation`` → ``action``)."""
+    """A Stable-Baselines3 model's deterministic action (DDPG's actor, PPO's mean) as a TensorDict policy
+    (``observation`` → ``action``), clipped to the action bounds as Stable-Baselines3 clips it."""
 
     in_keys = ["observation"]
     out_keys = ["action"]
@@ -63,5 +106,5 @@ class SB3Actor(TensorDictModuleBase):
 
     def forward(self, tensordict):
         with torch.no_grad():
-            action = self.model.actor(tensordict.get("observation").float())
+            action = self.model.policy._predict(tensordict.get("observation").float(), deterministic=True)
         return tensordict.set("action", action.clamp(-1.0, 1.0))

@@ -1,0 +1,62 @@
+"""The time-to-quality benchmark's plumbing: what a run's seconds count, and how Stable-Baselines3's best time is
+set against ours on each base.
+
+The pipelines themselves run for minutes (``python -m waterair.bench quality``); here one tiny training run
+shows what our time counts, and recorders stand in for the pipelines when the ratios are formed.
+"""
+
+import time
+
+import pytest
+from conftest import ONE_PATH, TINY
+
+from waterair.bench import quality
+from waterair.evaluation.scenarios import Scenario
+
+
+def test_our_time_is_the_training_loop_without_its_closing_evaluation(monkeypatch):
+    from waterair.training import loop
+
+    monkeypatch.setattr(quality, "SCENARIO", Scenario("S1", "t", None, ((12.0, 0.1, 0.0),), 2, 10, 12345))
+    slowed = {"closing": 0, "scoring": 0}
+
+    def slower(name, function):  # the same function, 1.5 s later, counted
+        return lambda *a, **k: slowed.update({name: slowed[name] + 1}) or time.sleep(1.5) or function(*a, **k)
+
+    monkeypatch.setattr(loop, "final_evaluation", slower("closing", loop.final_evaluation))
+    monkeypatch.setattr(quality, "compare_policies", slower("scoring", quality.compare_policies))
+    start = time.perf_counter()
+    record = quality.ours([800], 0.0, [*ONE_PATH, *TINY, "total_frames=800"])
+    wall = time.perf_counter() - start
+    (run,) = record["runs"]
+    assert slowed == {"closing": 1, "scoring": 1} and record["seconds_to_target"] == run["seconds"]
+    # the loop (environment and updates, about a second) is counted; the closing evaluation and the scoring are not
+    assert 0.3 < run["seconds"] < wall - 3.0, (run["seconds"], wall)
+
+
+def fake_runs(*seconds_and_ratios):
+    runs = [{"frames": 1600 * (i + 1), "seconds": s, "ratio_to_ub": r} for i, (s, r) in enumerate(seconds_and_ratios)]
+    return {"runs": runs, "seconds_to_target": quality._first_reaching(runs, 0.95)}
+
+
+def test_sb3s_best_time_on_each_base_over_ours_and_a_lower_bound_where_none_reached(monkeypatch):
+    ours = {"": fake_runs((10.0, 0.96)), "_flat_base": fake_runs((20.0, 0.90), (40.0, 0.97))}
+    theirs = {
+        ("sb3_ddpg", ""): fake_runs((100.0, 0.94), (300.0, 0.955)),
+        ("sb3_ppo", ""): fake_runs((200.0, 0.96)),
+        ("sb3_ddpg", "_flat_base"): fake_runs((500.0, 0.90)),
+        ("sb3_ppo", "_flat_base"): fake_runs((800.0, 0.93)),
+    }
+    flat = tuple(quality.FLAT_BASE)
+
+    def base_of(overrides) -> str:
+        return "_flat_base" if tuple(overrides[: len(flat)]) == flat else ""
+
+    monkeypatch.setattr(quality, "ours", lambda frames, target, overrides: ours[base_of(overrides)])
+    monkeypatch.setattr(quality, "sb3", lambda name, *args: theirs[name, base_of(args[-1])])
+    record = quality.bench_quality([1600], [1600], 4800)
+    assert record["sb3_over_ours"] == pytest.approx(200.0 / 10.0)  # PPO's 200 s beat DDPG's 300 s
+    assert record["sb3_flat_base_over_ours_flat_base_at_least"] == pytest.approx(500.0 / 40.0)
+    assert "sb3_flat_base_over_ours_flat_base" not in record
+    table = quality.quality_table(record)
+    assert "| SB3's best seconds / ours_flat_base's to 0.95 | | at least 12.5 | |" in table
