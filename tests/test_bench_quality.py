@@ -11,27 +11,27 @@ import pytest
 from conftest import ONE_PATH, TINY
 
 from waterair.bench import quality
-from waterair.evaluation.scenarios import Scenario
 
 
-def test_our_time_is_the_training_loop_without_its_closing_evaluation(monkeypatch):
+def test_our_time_is_every_training_loop_up_to_the_one_that_reached_without_the_evaluations(monkeypatch):
     from waterair.training import loop
 
-    monkeypatch.setattr(quality, "SCENARIO", Scenario("S1", "t", None, ((12.0, 0.1, 0.0),), 2, 10, 12345))
     slowed = {"closing": 0, "scoring": 0}
+    scores = iter([0.5, 0.99])  # the first budget falls short of the target, the second reaches it
 
-    def slower(name, function):  # the same function, 1.5 s later, counted
-        return lambda *a, **k: slowed.update({name: slowed[name] + 1}) or time.sleep(1.5) or function(*a, **k)
+    def slower(name, function):  # the same function, 0.6 s later, counted
+        return lambda *a, **k: slowed.update({name: slowed[name] + 1}) or time.sleep(0.6) or function(*a, **k)
 
     monkeypatch.setattr(loop, "final_evaluation", slower("closing", loop.final_evaluation))
-    monkeypatch.setattr(quality, "compare_policies", slower("scoring", quality.compare_policies))
+    monkeypatch.setattr(quality, "score", slower("scoring", lambda cfg, policy: next(scores)))
     start = time.perf_counter()
-    record = quality.ours([800], 0.0, [*ONE_PATH, *TINY, "total_frames=800"])
+    record = quality.ours([400, 800], 0.9, [*ONE_PATH, *TINY])
     wall = time.perf_counter() - start
-    (run,) = record["runs"]
-    assert slowed == {"closing": 1, "scoring": 1} and record["seconds_to_target"] == run["seconds"]
-    # the loop (environment and updates, about a second) is counted; the closing evaluation and the scoring are not
-    assert 0.3 < run["seconds"] < wall - 3.0, (run["seconds"], wall)
+    first, second = record["runs"]
+    assert slowed == {"closing": 2, "scoring": 2} and (first["frames"], second["frames"]) == (400, 800)
+    # both loops (environment and updates, about a second each) are counted; the evaluations and scorings are not
+    assert record["seconds_to_target"] == pytest.approx(first["seconds"] + second["seconds"])
+    assert min(first["seconds"], second["seconds"]) > 0.2 and record["seconds_to_target"] < wall - 2.4
 
 
 def fake_runs(*seconds_and_ratios):
