@@ -5,6 +5,7 @@ The pipelines themselves run for minutes (``python -m waterair.bench quality``);
 shows what our time counts, and recorders stand in for the pipelines when the ratios are formed.
 """
 
+import json
 import time
 
 import pytest
@@ -60,3 +61,20 @@ def test_sb3s_best_time_on_each_base_over_ours_and_a_lower_bound_where_none_reac
     assert "sb3_flat_base_over_ours_flat_base" not in record
     table = quality.quality_table(record)
     assert "| SB3's best seconds / ours_flat_base's to 0.95 | | at least 12.5 | |" in table
+
+
+def test_the_summary_sets_the_flat_bases_ratio_against_its_target(tmp_path):
+    from waterair.bench.summary import summary_lines
+
+    record = {"target": 0.95, "sb3_flat_base_over_ours_flat_base": 12.0, "sb3_flat_base_over_ours_flat_base_eager": 3.0}
+    (tmp_path / "quality.json").write_text(json.dumps(record))
+    rows = summary_lines(tmp_path)[2:]
+    assert rows == [
+        "| SB3's best seconds to 0.95 of the bound / ours_flat_base's | 12.0 | ≥ 10, compiles included | yes |",
+        "| SB3's best seconds to 0.95 of the bound / ours_flat_base_eager's | 3.0 | (eager) | – |",
+    ]
+    record = {"target": 0.95, "sb3_flat_base_over_ours_flat_base_at_least": 9.0}
+    (tmp_path / "quality.json").write_text(json.dumps(record))
+    assert summary_lines(tmp_path)[2:] == [
+        "| SB3's best seconds to 0.95 of the bound / ours_flat_base's | at least 9.0 | ≥ 10, compiles included | no |"
+    ]

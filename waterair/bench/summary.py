@@ -54,12 +54,11 @@ def summary_lines(folder: Path) -> list[str]:
         )
         for run in training["runs"]:
             if run["default"] and "over_sb3" in run:  # the mode train.py's auto runs at that length
-                target = 8 if run["frames"] == min(r["frames"] for r in training["runs"]) else 10
                 row(
                     f"train.py / SB3 DDPG frames/s, whole loop, {run['frames']:,} frames ({run['mode']})",
                     f"{run['over_sb3']:.1f}",
-                    f"≥ {target}",
-                    run["over_sb3"] >= target,
+                    "none: what counts is the time to quality (below)",
+                    None,
                 )
         for load in (training.get("load") or {}).get("rows", []):
             ratio, name = (
@@ -73,6 +72,16 @@ def summary_lines(folder: Path) -> list[str]:
         ddpg = training["train_ddpg"]  # the paper preset is DDPG; a long run's rate past its compiles
         minutes = PAPER_FRAMES / (ddpg["loop_after_first_batch_frames_per_s"] or ddpg["loop_frames_per_s"]) / 60
         row("paper budget (250,000 frames) at train.py's rate", f"{minutes:.1f} min", "≤ 6 min", minutes <= 6)
+    quality = _load(folder, "quality")
+    for key, ratio in (quality or {}).items():
+        if key.startswith("sb3_flat_base_over_ours_flat_base"):  # compiled, and eager when measured
+            mine = key.removeprefix("sb3_flat_base_over_").removesuffix("_at_least")
+            bound = "at least " if key.endswith("_at_least") else ""
+            name = f"SB3's best seconds to {quality['target']} of the bound / {mine}'s"
+            if mine.endswith("_eager"):  # what auto runs at these budgets; the target is the compiled pipeline's
+                row(name, f"{bound}{ratio:.1f}", "(eager)", None)
+            else:
+                row(name, f"{bound}{ratio:.1f}", "≥ 10, compiles included", ratio >= 10)
     return ["| quantity | measured | target | met |", "|---|---|---|---|", *rows]
 
 
