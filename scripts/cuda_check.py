@@ -5,12 +5,14 @@ CI has no GPU, so what "unchanged on CUDA" promises is checked here. Each part's
 a run cut short keeps the rest:
   1. ``agree``: the defaults' environment and the paper's (``+experiment=paper``), eager, on the CPU and on CUDA
      from the same seed and actions: float64 to 1e-9 relative, float32 to 1e-4;
-  2. ``compiled``: the defaults' environment compiled on CUDA against itself eager, link by link;
-  3. ``train``: a short train.py run on CUDA (networks, updates, environment and its closing evaluation);
-  4. ``bench``: env-steps/s at B = 1024 and 65,536 of the paper's one path compiled and the defaults' full
+  2. ``bench``: env-steps/s at B = 1024 and 65,536 of the paper's one path compiled and the defaults' full
      channel eager and compiled (:func:`waterair.bench.env.run_worker`, each point in a fresh process);
-  5. ``montecarlo``: the local estimate's rays/s (``python -m waterair.bench montecarlo``);
+  3. ``montecarlo``: the local estimate's rays/s (``python -m waterair.bench montecarlo``);
+  4. ``compiled``: the defaults' environment compiled on CUDA against itself eager, link by link;
+  5. ``train``: a short train.py run on CUDA (networks, updates, environment and its closing evaluation);
   6. ``evaluate``: ``make evaluate``'s evaluate.py (the shipped policies, S1-S5) on CUDA, timed.
+The whole takes longer than one 10-minute call on an H200 (compiles of about a minute each, evaluate.py over
+3 minutes): ``--parts`` runs some, each call writing its own file.
 Exit status 1 if a part disagrees or fails. ``--device cpu`` runs the parts on the CPU alone (a dry run: the
 comparisons are then of the CPU with itself). On a machine with its own CUDA build of torch and no network, the
 other packages can come as wheels on ``PYTHONPATH`` (torchrl, tensordict, hydra-core, omegaconf, antlr4 and
@@ -256,7 +258,7 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "outputs" / "cuda_check")
     parser.add_argument("--work", type=Path, default=None, help="where the runs go (default: OUT)")
     parser.add_argument("--device", default="cuda")
-    parser.add_argument("--parts", nargs="+", default=["agree", "compiled", "train", "bench", "montecarlo", "evaluate"])
+    parser.add_argument("--parts", nargs="+", default=["agree", "bench", "montecarlo", "compiled", "train", "evaluate"])
     parser.add_argument("--cases", nargs="*", default=[], help='bench cases "channel:sea:compiled(0|1):B"')
     parser.add_argument("--quick", action="store_true", help="small batches and few steps (a dry run)")
     args = parser.parse_args()
