@@ -77,7 +77,7 @@ bench: $(STAMP)
 slurm-check: $(STAMP)
 	scripts/slurm_check.sh
 
-# On a machine with a CUDA GPU: CUDA against the CPU, compiled against eager, a tiny training and evaluation, and
+# On a machine with a CUDA GPU: CUDA against the CPU, compiled against eager, a short training, evaluate.py and
 # the GPU's benchmarks (scripts/cuda_check.py; OUT/cuda_check/*.json, exit 1 if a part fails). CI has no GPU.
 cuda-check: $(STAMP)
 	$(PYTHON) scripts/cuda_check.py --out $(OUT)/cuda_check
