@@ -187,14 +187,29 @@ def _same_point(a: dict, b: dict) -> bool:
     return all(a[key] == b[key] for key in ("scenario", "wind", "offset_ratio", "offset_azimuth_deg", "divergence"))
 
 
-def test_the_divergence_study_writes_its_tables_figures_and_power_sweep_on_its_own_link(tmp_path):
+def _keeping_figures(monkeypatch) -> list:
+    """The figures the report saves, kept open (matplotlib's) after they are written."""
+    from waterair.evaluation import plots
+
+    saved, close = [], plots.plt.close
+    monkeypatch.setattr(plots.plt, "close", lambda figure=None: saved.append(figure) if figure is not None else close())
+    return saved
+
+
+def test_the_divergence_study_writes_its_tables_figures_and_power_sweep_on_its_own_link(tmp_path, monkeypatch):
     policy = write_policy(tmp_path / "policy.pt", observation_size=8)
     cfg = eval_cfg(f"checkpoint={policy}", *S5_TINY, "baselines=[flat_snell,aoa_tracker,no_alignment]")
     result = evaluate(cfg, progress=lambda _: None)
     out = tmp_path / "out"
+    saved = _keeping_figures(monkeypatch)
     written = {p.name for p in write_outputs(result, out, cfg, physics=False)}
     assert written == {"metrics.json", "metrics.csv", "outage_vs_power.csv", "report.md", "rate_vs_divergence_20ms.png",
                        "outage_vs_power.png"}  # fmt: skip
+    for figure in saved:  # as drawn: every axis label within its own panel's height, so none runs into another's
+        figure.canvas.draw()
+        for ax in (ax for ax in figure.axes if ax.get_ylabel()):
+            label, panel = ax.yaxis.label.get_window_extent(), ax.get_window_extent()
+            assert label.height <= panel.height, ax.get_ylabel()
     for name in ("rate_vs_divergence_20ms", "outage_vs_power"):
         assert (out / f"{name}.png").stat().st_size > 5000
     data = json.loads((out / "metrics.json").read_text())

@@ -216,8 +216,8 @@ def rate_vs_divergence(result, wind: float, path: Path) -> Path:
                                  markerfacecolor="none", markeredgecolor=colour, markeredgewidth=1.6)  # fmt: skip
         axes[0, column].set_title(f"offset {offset:.0%}", fontsize=10)
         axes[1, column].set_xlabel("beam divergence ω_D (mrad)")
-    axes[0, 0].set_ylabel("mean bit rate at the FEC limit (Mbit/s)")
-    axes[1, 0].set_ylabel("bit rate held 99 % of the time (Mbit/s)")
+    axes[0, 0].set_ylabel("mean bit rate at the\nFEC limit (Mbit/s)")  # two lines: one ran into the other's
+    axes[1, 0].set_ylabel("bit rate held 99 %\nof the time (Mbit/s)")
     for ax in axes.flat:
         ax.set_xscale("log")
         ax.set_xticks(x, [f"{v:g}" for v in x])
