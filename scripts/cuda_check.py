@@ -31,15 +31,15 @@ import traceback
 from pathlib import Path
 
 import torch
-from hydra import compose, initialize_config_dir
-from omegaconf import OmegaConf
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from waterair.bench.env import run_worker  # noqa: E402
+from waterair.bench.training import compose_training  # noqa: E402
 from waterair.envs.config import EnvConfig  # noqa: E402
 from waterair.envs.env import WaterAirEnv  # noqa: E402
+from waterair.training import builders  # noqa: E402
 
 COMPARED = ("observation", "gain", "gain_upper_bound", "intensity", "reward", "path_valid")
 SHORT = ["total_frames=3200", "eval.realisations=4", "eval.steps=20", "logger.progress_bar=false"]
@@ -47,12 +47,9 @@ SHORT = ["total_frames=3200", "eval.realisations=4", "eval.steps=20", "logger.pr
 
 
 def env_config(overrides: list[str], batch: int, dtype: str, device: str, compile_kernel: bool) -> EnvConfig:
-    """train.py's env for ``overrides``, as the tests compose it."""
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        cfg = compose(config_name="config", overrides=overrides)
-    values = {**OmegaConf.to_container(cfg.env, resolve=True), "num_envs": batch, "seed": 11, "max_steps": 10**6}
-    values.update(device=device, dtype=dtype, compile_kernel=compile_kernel)
-    return EnvConfig.from_mapping(values)
+    """train.py's env for ``overrides``, ``batch`` links on ``device``."""
+    settings = {"num_envs": batch, "seed": 11, "max_steps": 10**6, "device": device, "dtype": dtype}
+    return builders.env_config(compose_training(overrides), compile_kernel=compile_kernel, **settings)
 
 
 def rollout(config: EnvConfig, actions: torch.Tensor) -> dict[str, torch.Tensor]:
@@ -66,14 +63,18 @@ def rollout(config: EnvConfig, actions: torch.Tensor) -> dict[str, torch.Tensor]
     return {key: torch.stack(v) for key, v in trace.items()} | {"seconds": time.perf_counter() - start}
 
 
+def gap(got: dict, want: dict, key: str) -> torch.Tensor:
+    """``got[key]``'s difference from ``want[key]``, elementwise, relative to ``want[key]``'s largest value."""
+    a, b = got[key].double(), want[key].double()
+    return (a - b).abs() / b.abs().amax().clamp_min(1e-30)
+
+
 def differences(got: dict, want: dict) -> dict:
-    """Per key: the largest difference relative to the key's largest value, and whether any value is not finite."""
-    out = {}
-    for key in COMPARED:
-        a, b = got[key].double(), want[key].double()
-        scale = b.abs().max().clamp_min(1e-30)
-        out[key] = {"max_rel": ((a - b).abs().max() / scale).item(), "finite": bool(torch.isfinite(a).all())}
-    return out
+    """Per key: the largest :func:`gap`, and whether ``got``'s values are all finite."""
+    return {
+        key: {"max_rel": gap(got, want, key).max().item(), "finite": bool(torch.isfinite(got[key].double()).all())}
+        for key in COMPARED
+    }
 
 
 def part_agree(device: str, quick: bool) -> dict:
@@ -102,9 +103,7 @@ def links_apart(got: dict, want: dict, steps: int, batch: int, tolerance: float 
     than ``tolerance`` of the key's largest value."""
     apart = torch.zeros(batch, dtype=torch.bool)
     for key in COMPARED:
-        a, b = got[key].double(), want[key].double()
-        gap = ((a - b).abs() / b.abs().amax().clamp_min(1e-30)).reshape(steps, batch, -1).amax(dim=(0, 2))
-        apart |= gap > tolerance
+        apart |= gap(got, want, key).reshape(steps, batch, -1).amax(dim=(0, 2)) > tolerance
     return apart
 
 
@@ -118,15 +117,14 @@ def part_compiled(device: str, quick: bool) -> dict:
     compiled = rollout(env_config([], batch, "float32", device, True), actions)
     compiled_s = time.perf_counter() - start
     eager = rollout(env_config([], batch, "float32", device, False), actions)
-    apart = links_apart(compiled, eager, steps, batch)
-    finite = all(bool(torch.isfinite(compiled[key].double()).all()) for key in COMPARED)
-    passed = finite and apart.float().mean().item() <= 0.05
+    apart, keys = links_apart(compiled, eager, steps, batch), differences(compiled, eager)
+    finite = all(key["finite"] for key in keys.values())
     return {
-        "passed": passed,
+        "passed": finite and apart.float().mean().item() <= 0.05,
         "links_apart": apart.sum().item(),
         "links": batch,
         "finite": finite,
-        "keys": differences(compiled, eager),
+        "keys": keys,
         "compiled_first_rollout_s": compiled_s,
         "eager_rollout_s": eager["seconds"],
     }
