@@ -237,8 +237,9 @@ def weighted_direction(weights: torch.Tensor, directions: torch.Tensor, fallback
 
     Compiled, each component is its own sum over the samples: inductor's C++ loops count a ``[B, 3]`` reduction's
     vectorised 3-wide loop as no steps and so split the sum over N between the threads instead of the links, one
-    parallel region per link (18 per step of the bound's ascent; 38 ms of a 206 ms step at B = 1024, 2 threads;
-    tests/test_torch_internals.py). Eager keeps the one sum (the recordings' rounding)."""
+    parallel region per link (18 such sums in the bound's search; 38 ms of a 206 ms step at B = 1024, 2 threads;
+    tests/test_torch_internals.py). Eager keeps the one sum, whose rounding the recorded rollouts of tests/data
+    hold."""
     if torch.compiler.is_compiling():
         total = torch.stack([(weights * directions[..., axis]).sum(-1) for axis in range(3)], dim=-1)
     else:
