@@ -154,37 +154,3 @@ def test_every_setting_the_compiled_step_reads_is_a_one_element_tensor_in_its_dt
         name: ((1,), env.float_dtype) for name in settings
     }
     assert settings["intensity_noise"].item() == pytest.approx(0.1)
-
-
-def test_inductor_splits_a_sum_to_three_wide_rows_between_threads_per_link_and_weighted_direction_avoids_it(inductor):
-    """Inductor's C++ loop nest counts a vectorised loop over fewer elements than a vector as no steps, so a
-    ``[B, N, 3] → [B, 3]`` sum looks like no work outside its reduction: the sum over N is split between the
-    threads, one parallel region per link (waterair.physics.channel.light.weighted_direction). A plain sum
-    beside ``weighted_direction`` in one graph, compiled with two threads and vector loops (the tests' workers
-    compile scalar loops on one thread, which never split): one compile."""
-    from torch._inductor import config, metrics
-
-    from waterair.physics.channel.light import weighted_direction
-
-    name = "torch._inductor.metrics.parallel_reduction_count"
-    plain, ours = ([torch.rand(b, 81), torch.randn(b, 81, 3), torch.randn(b, 3)] for b in (64, 48))
-
-    def both(w, d, f, v, e, g):  # two batch sizes, so that inductor cannot fuse the two loop nests
-        return (w.unsqueeze(-1) * d).sum(1) + f, weighted_direction(v, e, g)
-
-    threads = torch.get_num_threads()
-    torch.set_num_threads(2)
-    try:
-        torch._dynamo.reset()
-        metrics.reset()
-        with config.patch({"cpp.simdlen": None, "fx_graph_cache": False}):
-            torch.compile(both, fullgraph=True)(*plain, *ours)
-        split = metrics.parallel_reduction_count
-    finally:
-        torch.set_num_threads(threads)
-        torch._dynamo.reset()
-    assert split > 0, (
-        f"{name} is 0 for a plain [B, N, 3] → [B, 3] sum: inductor no longer splits it per link (or no longer "
-        "counts it), and weighted_direction's per-component sums may go"
-    )
-    assert split == 1, f"{name} = {split}: weighted_direction's compiled sums are split between threads per link too"

@@ -233,17 +233,8 @@ def _ascend(light: LightSamples, tx: torch.Tensor, rx: torch.Tensor, optics: Tra
 
 
 def weighted_direction(weights: torch.Tensor, directions: torch.Tensor, fallback: torch.Tensor) -> torch.Tensor:
-    """The unit weighted mean of ``directions`` ``[B, N, 3]``, or ``fallback`` ``[B, 3]`` where it vanishes.
-
-    Compiled, each component is its own sum over the samples: inductor's C++ loops count a ``[B, 3]`` reduction's
-    vectorised 3-wide loop as no steps and so split the sum over N between the threads instead of the links, one
-    parallel region per link (18 such sums in the bound's search; 38 ms of a 206 ms step at B = 1024, 2 threads;
-    tests/test_torch_internals.py). Eager keeps the one sum, whose rounding the recorded rollouts of tests/data
-    hold."""
-    if torch.compiler.is_compiling():
-        total = torch.stack([(weights * directions[..., axis]).sum(-1) for axis in range(3)], dim=-1)
-    else:
-        total = (weights.unsqueeze(-1) * directions).sum(1)
+    """The unit weighted mean of ``directions`` ``[B, N, 3]``, or ``fallback`` ``[B, 3]`` where it vanishes."""
+    total = (weights.unsqueeze(-1) * directions).sum(1)
     norm = torch.linalg.vector_norm(total, dim=-1, keepdim=True)
     tiny = torch.finfo(total.dtype).tiny
     return torch.where(norm > math.sqrt(tiny), total / norm.clamp(min=math.sqrt(tiny)), fallback)
