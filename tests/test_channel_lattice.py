@@ -9,7 +9,14 @@ import torch
 from conftest import F64, ends
 
 from waterair.physics.channel import LightSamples, LinkEnds, Transceiver, TwoScale, standard_error
-from waterair.physics.channel.lattice import BEAM_LATTICE_FROM, across_cells, beam_aim, beam_share
+from waterair.physics.channel.lattice import (
+    BEAM_LATTICE_FROM,
+    EIGH_CHUNK,
+    across_cells,
+    beam_aim,
+    beam_share,
+    symmetric_eigen,
+)
 from waterair.physics.channel.local_estimate import LocalEstimate
 from waterair.physics.optics import unit_vector
 from waterair.physics.paths import flat_sea_point, solve_path
@@ -139,3 +146,20 @@ def test_straight_facing_holds_against_the_local_estimate_with_the_field_of_view
         errors.append(math.sqrt(max(0.0, ((gain - exact).pow(2).mean() - se.pow(2).mean()).item())) / exact.mean())
     cells, as_rays = errors
     assert cells < 0.10 and as_rays > 2 * cells, errors
+
+
+def test_the_eigensolver_in_pieces_gives_each_matrix_its_own_decomposition():
+    """More links than one call of the eigensolver takes (:data:`EIGH_CHUNK`, kept under cuSOLVER's batch limit):
+    every matrix, the last piece's too, is rebuilt from its own eigenvalues (ascending) and orthonormal vectors,
+    and equals the solver's answer for that matrix alone, laid out in memory as one call lays it out."""
+    generator = torch.Generator().manual_seed(0)
+    a = torch.randn(EIGH_CHUNK + 5, 2, 2, dtype=F64, generator=generator)
+    matrices = a @ a.transpose(-1, -2) + 0.1 * torch.eye(2, dtype=F64)
+    values, vectors = symmetric_eigen(matrices)
+    assert vectors.stride() == torch.linalg.eigh(matrices).eigenvectors.stride()
+    rebuilt = vectors @ torch.diag_embed(values) @ vectors.transpose(-1, -2)
+    assert torch.allclose(rebuilt, matrices, rtol=1e-12, atol=1e-12)
+    assert (values[:, 1] >= values[:, 0]).all()
+    for link in (0, EIGH_CHUNK - 1, EIGH_CHUNK, EIGH_CHUNK + 4):
+        alone_values, alone_vectors = torch.linalg.eigh(matrices[link : link + 1])
+        assert torch.equal(values[link], alone_values[0]) and torch.equal(vectors[link], alone_vectors[0])

@@ -54,6 +54,10 @@ BEAM_LATTICE_FROM = (0.25, 1.0)
 lattice around the tracked point to the beam's (:func:`beam_share`)."""
 LARGEST_PATCH = 0.8
 """Prior width (m) of the patch: a floor on its precision, where the blur would spread it further."""
+EIGH_CHUNK = 2**14
+"""Links per call of the batched symmetric eigensolver in :func:`lattice_shape`: cuSOLVER's batched solver
+(``cusolverDnXsyevBatched``) stops with an internal error somewhere above about 32,000 matrices (seen at 65,536
+2 × 2 matrices on an H200, CUDA 13); each matrix is solved on its own, so the pieces give what one call would."""
 
 
 @dataclass(frozen=True)
@@ -174,6 +178,15 @@ def beam_aim(tx: torch.Tensor, pointing: torch.Tensor) -> torch.Tensor:
     return tx[:, :2] - pointing[:, :2] * (tx[:, 2] / pointing[:, 2]).unsqueeze(-1)
 
 
+def symmetric_eigen(matrices: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """``torch.linalg.eigh`` of ``[B, n, n]`` symmetric matrices, :data:`EIGH_CHUNK` at a time, the vectors laid
+    out as one call lays them (each matrix column by column: the products that use them round by their layout)."""
+    if matrices.shape[0] <= EIGH_CHUNK:
+        return torch.linalg.eigh(matrices)
+    pieces = [torch.linalg.eigh(piece) for piece in matrices.split(EIGH_CHUNK)]
+    return torch.cat([values for values, _ in pieces]), torch.cat([vectors.mT for _, vectors in pieces]).mT
+
+
 def lattice_shape(tx: torch.Tensor, rx: torch.Tensor, slope_covariance: torch.Tensor, optics: Transceiver):
     """Per-link lattice basis U ``[B, 2, 2]`` (m), the blur covariance ``[B, 3]`` (σ_xx, σ_xy, σ_yy) and the
     pull ``[B, 2, 2]`` that moves the lattice toward where the beam is aimed.
@@ -210,7 +223,7 @@ def lattice_shape(tx: torch.Tensor, rx: torch.Tensor, slope_covariance: torch.Te
     covariance = footprint[:, None, None] * (eye + (1.0 / cos1**2 - 1.0)[:, None, None] * along)
     spread = torch.linalg.inv(covariance)
     product = torch.linalg.inv(precision + spread)
-    values, vectors = torch.linalg.eigh(product)
+    values, vectors = symmetric_eigen(product)
     return vectors * torch.sqrt(values).unsqueeze(-2), blur, product @ spread
 
 
