@@ -157,7 +157,7 @@ def test_the_saved_policy_is_the_averaged_or_the_last_actor(weights, tmp_path):
 @pytest.mark.slow
 def test_killed_run_resumes_to_the_configured_frames(tmp_path):
     run_dir = tmp_path / "run"
-    args = [*TINY, "total_frames=1200", "checkpoint.every_frames=400", f"hydra.run.dir={run_dir}"]
+    args = [*TINY, *ONE_PATH, "total_frames=1200", "checkpoint.every_frames=400", f"hydra.run.dir={run_dir}"]
     process = subprocess.Popen(
         [sys.executable, "train.py", *args], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
     )
@@ -194,7 +194,7 @@ def test_a_finished_run_resumed_changes_nothing_and_a_larger_total_frames_extend
     def run(*overrides):
         return training.run(compose_cfg(*overrides), list(overrides), tmp_path)
 
-    run("total_frames=800", "checkpoint.every_frames=400")
+    run(*ONE_PATH, "total_frames=800", "checkpoint.every_frames=400")
     csv_before, checkpoint_before = (tmp_path / "metrics.csv").read_bytes(), checkpoint.read_bytes()
     with caplog.at_level(logging.INFO, logger="waterair.train"):
         run(f"resume={tmp_path}")
@@ -230,7 +230,8 @@ class Killed(Exception):
 
 @pytest.mark.slow
 def test_a_run_killed_between_buffer_dump_and_checkpoint_resumes_a_consistent_state(tmp_path, monkeypatch):
-    cfg = compose_cfg("agent=ddpg", "total_frames=800", "checkpoint.every_frames=400", "checkpoint.keep_buffer=true")
+    keys = ["agent=ddpg", *ONE_PATH, "total_frames=800", "checkpoint.every_frames=400", "checkpoint.keep_buffer=true"]
+    cfg = compose_cfg(*keys)
     real_save, saves = checkpoint_module.save_policy, []
 
     def killed_at_the_second_checkpoint(path, state):
@@ -248,8 +249,7 @@ def test_a_run_killed_between_buffer_dump_and_checkpoint_resumes_a_consistent_st
     state = torch.load(folder / "last.pt", weights_only=True)
     assert state["frames"] == 400 and state["buffer"] == {"dir": "buffer-400", "size": 400}
 
-    resume = compose_cfg("agent=ddpg", "total_frames=800", "checkpoint.every_frames=400",
-                         "checkpoint.keep_buffer=true", f"resume={tmp_path}")  # fmt: skip
+    resume = compose_cfg(*keys, f"resume={tmp_path}")
     plan = plan_resume(resume, [f"resume={tmp_path}"])
     assert plan.frames_done == 400 and not plan.finished
     metrics = train(plan.config, tmp_path)
@@ -261,7 +261,7 @@ def test_a_run_killed_between_buffer_dump_and_checkpoint_resumes_a_consistent_st
     shutil.rmtree(folder / "buffer-800")  # a checkpoint whose dump is gone is refused, not resumed half-empty
     overrides = [f"resume={tmp_path}", "total_frames=1200"]
     with pytest.raises(ValueError, match="names the replay buffer .*buffer-800, which is missing"):
-        train(plan_resume(compose_cfg("agent=ddpg", *overrides), overrides).config, tmp_path)
+        train(plan_resume(compose_cfg("agent=ddpg", *ONE_PATH, *overrides), overrides).config, tmp_path)
 
 
 @pytest.mark.slow
