@@ -141,7 +141,7 @@ def test_ppo_passes_over_each_batch_until_the_policy_has_moved_target_kl(target_
 
 @pytest.mark.parametrize("weights", ["average", "last"])
 def test_the_saved_policy_is_the_averaged_or_the_last_actor(weights, tmp_path):
-    cfg = compose_cfg("agent=ddpg", "total_frames=800", f"agent.policy_weights={weights}")
+    cfg = compose_cfg("agent=ddpg", *ONE_PATH, "total_frames=800", f"agent.policy_weights={weights}")
     train(cfg, tmp_path)
     state = torch.load(tmp_path / "checkpoints" / "last.pt", weights_only=True)
     online = {k[len("actor_network_params.") :]: v for k, v in state["loss"].items() if k.startswith("actor_network")}
