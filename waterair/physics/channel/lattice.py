@@ -181,8 +181,6 @@ def beam_aim(tx: torch.Tensor, pointing: torch.Tensor) -> torch.Tensor:
 def symmetric_eigen(matrices: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """``torch.linalg.eigh`` of ``[B, n, n]`` symmetric matrices, :data:`EIGH_CHUNK` at a time, the vectors laid
     out as one call lays them (each matrix column by column: the products that use them round by their layout)."""
-    if matrices.shape[0] <= EIGH_CHUNK:
-        return torch.linalg.eigh(matrices)
     pieces = [torch.linalg.eigh(piece) for piece in matrices.split(EIGH_CHUNK)]
     return torch.cat([values for values, _ in pieces]), torch.cat([vectors.mT for _, vectors in pieces]).mT
 
