@@ -153,10 +153,10 @@ LATE = {"latency_steps": 1, "spot_noise_rad": 1e-3, "beacon_noise_rad": 1e-3}
 
 
 def test_the_beacon_predictor_carries_each_end_one_step_on_along_its_last_move_clamped():
-    """Against the beacon tracker on the same observations, link by link: the same pointing while the readings
-    are the parked gimbals' (the first two decisions, one step late) and the step after; from then on the
-    tracker's direction plus its last change where that change is below ``max_step``, and never more than
-    ``max_step`` from the tracker's."""
+    """Against the beacon tracker on the same observations, link by link, each end on its own: the same pointing
+    while its readings are the parked gimbals' (the transmitter's beacon at the first decision, the drone's spot,
+    one step late, at the first two) and the step after; from then on the tracker's direction plus its last
+    change where that change is below ``max_step``, and never more than ``max_step`` from the tracker's."""
     config = EnvConfig().replace(
         **paper_physics(n_freq=16, n_dir=8), dtype="float64", observation_extras=TWO_ENDED, compile_kernel=False
     )
@@ -166,13 +166,14 @@ def test_the_beacon_predictor_carries_each_end_one_step_on_along_its_last_move_c
     for step in range(40):
         now = torch.stack(tracker.directions(td))  # [end, link, 3]
         ahead = torch.stack(predictor.directions(td))
-        if step < 3:
-            assert torch.equal(ahead, now)
-        else:
-            move = now - previous
+        for end, first in enumerate((2, 2 + LATE["latency_steps"])):  # the beacon is read at once, the spot late
+            if step < first:
+                assert torch.equal(ahead[end], now[end])
+                continue
+            move = now[end] - previous[end]
             free = torch.linalg.vector_norm(move, dim=-1) < 2e-3
-            torch.testing.assert_close(ahead[free], unit_vector(now + move)[free], rtol=0, atol=1e-12)
-            assert angle_between(ahead, now).max().item() <= 2e-3 + 1e-9
+            torch.testing.assert_close(ahead[end][free], unit_vector(now[end] + move)[free], rtol=0, atol=1e-12)
+            assert angle_between(ahead[end], now[end]).max().item() <= 2e-3 + 1e-9
             carried, clamped = carried + int(free.sum()), clamped + int((~free).sum())
         previous = now
         action = env.action_for_pointing(ahead[0], ahead[1], td["tilt"], td.get("base_tilt", None))
@@ -180,19 +181,21 @@ def test_the_beacon_predictor_carries_each_end_one_step_on_along_its_last_move_c
     assert carried > 100 and clamped > 10  # both cases were seen
 
 
-def test_carried_one_step_on_the_beacon_tracker_gains_what_the_latency_took():
-    """The paper's physics, a 10 mrad beam, the readings one step late and noisy: the predictor's ratio to the
-    bound is above the beacon tracker's by 0.07 at every wind (measured +0.11 to +0.12: 0.43–0.49 against
-    0.32–0.38; exact tracking one step late, 0.69–0.71)."""
+def test_carried_one_step_on_the_beacon_tracker_points_ahead_of_exact_tracking_one_step_late():
+    """The paper's physics, a 10 mrad beam, the drone's readings one step late and both noisy: the beacon, read
+    at once, points the transmitter as exact tracking does, one step late, and the predictor carries it the step
+    on. Its ratio to the bound is above the beacon tracker's by 0.05 and above exact tracking's at every wind
+    (measured 0.74–0.77 against 0.67–0.69 and 0.69–0.71)."""
     config = EnvConfig().replace(
         **paper_physics(n_freq=16, n_dir=8), observation_extras=TWO_ENDED, compile_kernel=False, **LATE
     )
     points = [(4.0, 0.1, 0.0), (12.0, 0.1, 0.0), (20.0, 0.1, 0.0)]
-    members = [("tracker", "beacon_tracker"), ("predictor", "beacon_predictor")]
+    members = [("tracker", "beacon_tracker"), ("predictor", "beacon_predictor"), ("tracking", "tracking")]
     runs = rollout_policies(config.replace(optics={"divergence": 0.01}), members, points, 8, 60, seed=3)
     ratio = {label: run["gain"].double().mean((0, 2)) / run["gain_upper_bound"].double().mean((0, 2)) for
              label, run in runs.items()}  # fmt: skip
-    assert bool((ratio["predictor"] > ratio["tracker"] + 0.07).all()), ratio
+    assert bool((ratio["predictor"] > ratio["tracker"] + 0.05).all()), ratio
+    assert bool((ratio["predictor"] > ratio["tracking"]).all()), ratio
 
 
 def test_the_beacon_reading_is_zero_unless_asked_for_and_the_residual_base_needs_it():
@@ -295,3 +298,30 @@ def test_the_full_channels_beacon_reads_the_same_light_wherever_the_laser_points
         light = model.light(surface.harmonics, path, LinkEnds(tx, rx, calm_point, laser), times, prepared)
         readings.append(read_beacon(model.unpointed_light(light), detector, rx_dir, Beacon(), OPTICS))
     assert torch.equal(readings[0].incoming, readings[1].incoming) and torch.equal(readings[0].gain, readings[1].gain)
+
+
+def test_the_beacon_reaches_the_controller_at_once_and_the_drones_readings_over_the_return_link():
+    """The same seas and actions with the packet 0 and 2 steps late: the beacon reading (taken at the
+    transmitter, where the controller runs) and the beacon tracker's transmitter tilt are the same at every
+    step; the spot, the intensity and the receiver's pointing (the drone's) arrive two steps later."""
+    config = EnvConfig().replace(
+        **paper_physics(n_freq=16, n_dir=8), dtype="float64", observation_extras=TWO_ENDED, compile_kernel=False,
+        residual_base="beacon_tracker", num_envs=6,
+    )  # fmt: skip
+    actions = 0.05 * torch.randn(12, 6, 4, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    traces = {}
+    for late in (0, 2):
+        env = WaterAirEnv(config.replace(latency_steps=late), seed=4)
+        td, trace = env.reset(), []
+        for action in actions:
+            td = env.step(td.set("action", action))["next"]
+            parts = {name: env.observation_part(td["observation"], name) for name in ("beacon", "spot", "intensity")}
+            trace.append({**parts, "rx_pointing": env.observation_part(td["observation"], "rx_pointing"),
+                          "base_tx": td["base_tilt"][:, :2]})  # fmt: skip
+        traces[late] = {key: torch.stack([t[key] for t in trace]) for key in trace[0]}
+    now, late = traces[0], traces[2]
+    assert bool((now["beacon"].abs() > 0).any())
+    assert torch.equal(now["beacon"], late["beacon"]) and torch.equal(now["base_tx"], late["base_tx"])
+    for key in ("spot", "intensity", "rx_pointing"):
+        assert torch.equal(late[key][2:], now[key][:-2]), key
+        assert not torch.equal(late[key][2:], now[key][2:]), key  # they move: the delay is seen

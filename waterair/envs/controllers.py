@@ -14,6 +14,7 @@ import torch
 
 from waterair.envs.baselines import FlatSeaSnell, PointingPolicy
 from waterair.envs.sensors import back_projection, beacon_pointing, intensity_from_feature, read_parked
+from waterair.physics.channel import pointing
 from waterair.physics.optics import per_link, unit_vector
 
 
@@ -21,8 +22,9 @@ class BeaconTracker(PointingPolicy):
     """Each end along its own reading: the terminals sense each other (docs/model.md §4.9).
 
     Assumes a beacon on the drone and a quadrant detector for it on the transmitter's gimbal, read with the
-    transmitter's pointing, and the drone's quadrant detector for the uplink (as :class:`AoATracker`), both
-    readings reaching the controller in the packet; the detectors' fields of view from their datasheets.
+    transmitter's present pointing where the controller runs, so at once, and the drone's quadrant detector for
+    the uplink (as :class:`AoATracker`), its reading over the return link in the packet; the detectors' fields of
+    view from their datasheets.
 
     * Transmitter: where the beacon's light comes from, the measured beacon arrival reversed: by reciprocity
       the direction in which the uplink leaves toward the drone, one reading late.
@@ -40,7 +42,7 @@ class BeaconTracker(PointingPolicy):
         flat = FlatSeaSnell.directions(self, tensordict)
         observation, part = tensordict.get("observation"), self.env.observation_part
         beacon = (
-            part(observation, "tx_pointing"),
+            pointing(tensordict.get("tilt")[:, :2], up=True),  # read with the present pointing, at once
             part(observation, "beacon"),
             part(observation, "beacon_valid")[:, 0] > 0.5,
         )
@@ -56,9 +58,9 @@ class BeaconPredictor(BeaconTracker):
     """The beacon tracker, each end carried one step ahead along its last move (docs/environment.md, "Classical
     controllers").
 
-    A reading reaches the controller ``latency_steps`` after it was taken, and the pointing chosen from it acts
-    one step later still, so the beacon tracker points where the path was ``latency_steps + 1`` steps before:
-    at 4 m/s that delay, not the detectors' noise, is what a narrow beam loses. This controller adds to each
+    The pointing chosen from a reading acts one step after the reading reached the controller, so the beacon
+    tracker points the transmitter where the path was one step before (as ``tracking``), the receiver
+    ``latency_steps + 1`` steps before (its reading comes over the return link). This controller adds to each
     end's direction the change between its last two readings, that step's angle clamped at ``max_step``
     (rad): where the light splits between refraction points the centroid jumps, and a jump carried on would
     throw the beam off. An end whose reading is lost, or whose last two readings are not both the tracking's
@@ -78,7 +80,8 @@ class BeaconPredictor(BeaconTracker):
         now = torch.stack(super().directions(tensordict))
         observation, part = tensordict.get("observation"), self.env.observation_part
         seen = torch.stack((part(observation, "beacon_valid")[:, 0], part(observation, "spot_valid")[:, 0])) > 0.5
-        tracked = seen & ~parked_reading(self.env, observation)
+        parked = torch.stack((parked_reading(self.env, observation, latency_steps=0), parked_reading(self.env, observation)))
+        tracked = seen & ~parked
         if self.last is None or self.last.shape != now.shape:
             self.last, self.tracked = now, torch.zeros_like(tracked)
         move = now - self.last
@@ -227,11 +230,12 @@ class IntensityDither(PointingPolicy):
         return best, (self.count >= self.PROBES) & conditioned & near & torch.isfinite(best).all(-1)
 
 
-def parked_reading(env, observation: torch.Tensor) -> torch.Tensor:
-    """Whether each link's packet in ``observation`` ``[n]`` is the one read with the gimbals parked at the
-    reset (:func:`waterair.envs.sensors.read_parked`), from the episode time the observation carries."""
+def parked_reading(env, observation: torch.Tensor, latency_steps: int | None = None) -> torch.Tensor:
+    """Whether each link's reading in ``observation`` ``[n]`` is the one read with the gimbals parked at the
+    reset (:func:`waterair.envs.sensors.read_parked`), from the episode time the observation carries: the drone's
+    readings, ``latency_steps`` late (default: the environment's), or the beacon's (0: it is never late)."""
     steps = torch.round(env.observation_part(observation, "time")[:, 0] * env.config.max_steps)
-    return read_parked(steps, env.config.latency_steps)
+    return read_parked(steps, env.config.latency_steps if latency_steps is None else latency_steps)
 
 
 CONTROLLERS = {cls.name: cls for cls in (BeaconTracker, BeaconPredictor, AoATracker, IntensityDither)}

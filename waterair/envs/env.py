@@ -59,9 +59,11 @@ class WaterAirEnv(EnvBase):
     ``EnvConfig.observation_layout`` names where each part sits. With ``frames`` = k > 1 the
     observation is the last k such frames side by side, newest first (a reset repeats its first).
 
-    **Sensing**: pointing, intensity, spot, beacon and history come in a measurement packet that reaches
-    the observation ``latency_steps`` late, with the sensor's noise, saturation and gating
-    (:mod:`waterair.envs.sensors`); time, action history and geometry are current. The default
+    **Sensing**: pointing, intensity, spot and history come in a measurement packet that reaches the
+    observation ``latency_steps`` late (the drone's readings, over the return link), with the sensor's noise,
+    saturation and gating (:mod:`waterair.envs.sensors`); the beacon, read at the transmitter where the
+    controller runs, at once, in the frame of the present pointing; time, action history and geometry are
+    current. The default
     (ideal) sensor reports the true values at once.
 
     **Reward** ``[B, 1]``: :class:`waterair.envs.rewards.Reward` of the intensity I = G / G_0, where G_0

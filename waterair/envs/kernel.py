@@ -86,12 +86,12 @@ def base_tilts(c: StepConstants, state: StepState) -> torch.Tensor:
     point, tx, rx = state.flat_point, state.tx_position, state.rx_position
     if c.residual_base == "flat_snell":
         return flat_tilts(point, tx, rx)
-    delivered = unpack(state.packets[:, -1]).readings
+    delivered = deliver(state.packets).readings
     flat = unit_vector(point - tx), unit_vector(point - rx)
     if c.residual_base == "beacon_tracker":
         assert c.beacon is not None  # EnvConfig.senses_beacon: a beacon base reads the beacon
         tx_dir, rx_dir = beacon_pointing(
-            (delivered.tx_pointing, delivered.beacon, delivered.beacon_valid[:, 0] > 0.5),
+            (pointing(state.tx_tilt, up=True), delivered.beacon, delivered.beacon_valid[:, 0] > 0.5),
             (delivered.rx_pointing, delivered.spot, delivered.spot_valid[:, 0] > 0.5),
             flat,
             c.beacon.half_fov,
@@ -213,6 +213,15 @@ def unpack(packet: torch.Tensor) -> Packet:
     return Packet(Readings(*readings), history)
 
 
+def deliver(packets: torch.Tensor) -> Packet:
+    """What reaches the controller, at the transmitter, of the packets in flight ``[n, latency_steps + 1, width]``
+    (newest first): the drone's readings, with the transmitter's pointing they were read with, over the return
+    link, the oldest packet; the beacon reading at once, the newest, for it is read at the transmitter, in the
+    frame of its present pointing (docs/environment.md, "Sensing")."""
+    late, now = unpack(packets[:, -1]), unpack(packets[:, 0]).readings
+    return late._replace(readings=late.readings._replace(beacon=now.beacon, beacon_valid=now.beacon_valid))
+
+
 def conclude(
     c: StepConstants, state: StepState, moved: Moved, solution: Iterate, noise, light: LightSamples | None = None
 ) -> StepResult:
@@ -286,7 +295,7 @@ def observe(c: StepConstants, state: StepState) -> torch.Tensor:
     geometry), which is never late. An environment keeps the columns of the parts its layout asks
     for (:func:`observation_columns`), outside the graph, so that every preset shares one graph.
     """
-    delivered = unpack(state.packets[:, -1])
+    delivered = deliver(state.packets)
     time = (state.time / c.episode_seconds).unsqueeze(-1)
     geometry = (state.rx_position - state.tx_position)[:, :2] / c.vertical_distance
     narrow, wide = DIVERGENCE_SPAN

@@ -3,8 +3,9 @@
 The receiver measures the received intensity (a photodiode) and where the light arrives on a
 quadrant detector (the ``spot``: the incoming direction in the receiver frame over tan ω_A); the
 gimbals report their pointing. These readings form one *packet* per step, which reaches the
-controller ``latency_steps`` steps late (the transmitter's share travels back over an acoustic or
-optical return link). Readings are noisy (relative and additive intensity noise, angular spot
+controller, at the transmitter, ``latency_steps`` steps late (the drone's readings travel back over an
+acoustic or optical return link); the beacon reading, taken at the transmitter, reaches it at once
+(:func:`waterair.envs.kernel.deliver`). Readings are noisy (relative and additive intensity noise, angular spot
 noise), the photodiode saturates, and below an intensity threshold the detector sees no spot.
 
 The ideal sensor (every setting 0 or None) reports the true values at once; no random numbers are
@@ -24,7 +25,8 @@ from waterair.physics.channel import Beacon
 from waterair.physics.optics import Scalar, traced, transverse_frame, unit_vector
 
 PACKET_PARTS = ("tx_pointing", "rx_pointing", "intensity", "spot", "spot_valid", "beacon", "beacon_valid", "history")
-"""Observation parts that travel in the measurement packet, and so arrive ``latency_steps`` late."""
+"""Observation parts that travel in the measurement packet: each arrives ``latency_steps`` late but the beacon's,
+read where the controller runs."""
 TRACED_SETTINGS = (
     "intensity_noise",
     "intensity_noise_floor",

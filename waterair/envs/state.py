@@ -60,7 +60,8 @@ class StepState:
         history: the previous measured intensity features ``[B, history_length]``, newest first;
             last_feature: the newest ``[B]``.
         action_history: the last actions ``[B, history_length, 4]``, newest first.
-        packets: the packets in flight ``[B, latency_steps + 1, width]``, newest first; the controller sees the last.
+        packets: the packets in flight ``[B, latency_steps + 1, width]``, newest first; the controller sees the last
+            (the beacon's parts: the first).
         prepared: the channel's per-episode constants by its names (``ChannelModel.prepared_keys``), ``[B, ...]``.
     """
 
