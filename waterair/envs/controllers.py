@@ -80,8 +80,8 @@ class BeaconPredictor(BeaconTracker):
         now = torch.stack(super().directions(tensordict))
         observation, part = tensordict.get("observation"), self.env.observation_part
         seen = torch.stack((part(observation, "beacon_valid")[:, 0], part(observation, "spot_valid")[:, 0])) > 0.5
-        parked = torch.stack((parked_reading(self.env, observation, latency_steps=0), parked_reading(self.env, observation)))
-        tracked = seen & ~parked
+        beacon_parked = parked_reading(self.env, observation, latency_steps=0)  # the beacon is never late
+        tracked = seen & ~torch.stack((beacon_parked, parked_reading(self.env, observation)))
         if self.last is None or self.last.shape != now.shape:
             self.last, self.tracked = now, torch.zeros_like(tracked)
         move = now - self.last
