@@ -63,8 +63,7 @@ class WaterAirEnv(EnvBase):
     observation ``latency_steps`` late (the drone's readings, over the return link), with the sensor's noise,
     saturation and gating (:mod:`waterair.envs.sensors`); the beacon, read at the transmitter where the
     controller runs, at once, in the frame of the present pointing; time, action history and geometry are
-    current. The default
-    (ideal) sensor reports the true values at once.
+    current. The default (ideal) sensor reports the true values at once.
 
     **Reward** ``[B, 1]``: :class:`waterair.envs.rewards.Reward` of the intensity I = G / G_0, where G_0
     is the aligned calm-sea gain of the same geometry.
