@@ -229,3 +229,27 @@ def test_the_intensity_dither_takes_no_probe_from_the_parked_gimbals_reading(lat
         dither = radius * torch.stack((torch.cos(angle), torch.sin(angle))).to(offset.dtype)
         torch.testing.assert_close(offset, dither.expand_as(offset), rtol=0, atol=1e-6)
     assert (seen[first_fit] - seen[0]).abs().max() > 1e-4  # then the fit steers
+
+
+def test_the_intensity_dithers_fit_finds_the_gaussians_peak_at_a_narrow_beam_and_refuses_probes_on_a_line():
+    """Three float32 probes (as the observation carries them) of a Gaussian of known peak, on the dither triangle
+    0.4 ω_D from it: the fit, solved in float64, finds the peak to 2·10⁻⁵ ω_D at every divergence (in float32 it
+    was 6·10⁻⁴ ω_D off at 5 mrad, where the system's tilt columns are about 4·10⁴). Two probes at one tilt (the
+    pointing held while a reading was lost) leave no fit, and no error: in float32 the determinant's rounding
+    passed its threshold and the solve stopped on a singular matrix on some CPUs."""
+    env = WaterAirEnv(**{**SMALL, "num_envs": 4})
+    dither = IntensityDither(env)
+    divergence = torch.tensor([0.005, 0.01, 0.05, 0.1], dtype=torch.float64)
+    peak = torch.tensor([[0.26, 0.25], [0.3, -0.06], [0.1, 0.2], [-0.2, 0.3]], dtype=torch.float64)
+    target = peak + 0.4 * divergence[:, None] * torch.tensor([0.6, -0.8], dtype=torch.float64)
+    angles = 2.0 * math.pi * torch.arange(3, dtype=torch.float64) / 3
+    tilt = target[:, None] + dither.radius * divergence[:, None, None] * torch.stack((angles.cos(), angles.sin()), -1)
+    log_intensity = -5.0 - 0.5 * (4.0 / divergence**2)[:, None] * ((tilt - peak[:, None]) ** 2).sum(-1)
+    dither.probes = torch.cat((tilt, log_intensity.unsqueeze(-1)), -1).float()
+    dither.count = torch.full((4,), IntensityDither.PROBES)
+    best, usable = dither._fit(target.float(), divergence)
+    assert usable.all()
+    assert ((best.double() - peak).norm(dim=-1) / divergence).max() < 2e-5
+    dither.probes[:, 1] = dither.probes[:, 0]
+    best, usable = dither._fit(target.float(), divergence)
+    assert not usable.any()

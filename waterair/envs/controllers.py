@@ -215,19 +215,23 @@ class IntensityDither(PointingPolicy):
 
     def _fit(self, flat_tilt: torch.Tensor, divergence: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """v* of the Gaussian through the held probes ``[n, 2]``, and where that fit is usable ``[n]``, for each
-        link's ω_D ``[n]`` (float64)."""
+        link's ω_D ``[n]`` (float64). Solved in float64: at 5 mrad the system's tilt columns are about 4·10⁴ and
+        differ between probes by about 10², so float32 lost the fit's last digits (6·10⁻⁴ ω_D of error) and, for
+        probes on a line, the test of the determinant below (its rounding exceeded the threshold)."""
         scale = 4.0 / divergence**2
-        tilt, log_intensity = self.probes[..., :2], self.probes[..., 2]
+        probes = self.probes.double()
+        tilt, log_intensity = probes[..., :2], probes[..., 2]
         system = torch.cat((torch.ones_like(log_intensity).unsqueeze(-1), per_link(scale, tilt) * tilt), dim=-1)
         rhs = log_intensity + per_link(0.5 * scale, tilt[..., 0]) * (tilt**2).sum(-1)
         determinant = torch.linalg.det(system)
         # 1 % of the determinant of the dither triangle itself: probes closer to a line are ignored.
         conditioned = determinant.abs() > per_link(0.01 * (scale * self.radius * divergence) ** 2, determinant)
         eye = torch.eye(3, dtype=system.dtype, device=system.device)
-        solution = torch.linalg.solve(system + (~conditioned).to(system.dtype)[:, None, None] * eye, rhs)
-        best = solution[:, 1:]
+        solution, singular = torch.linalg.solve_ex(system + (~conditioned).to(system.dtype)[:, None, None] * eye, rhs)
+        best = solution[:, 1:].to(flat_tilt.dtype)
         near = torch.linalg.vector_norm(best - flat_tilt, dim=-1) <= self.max_offset
-        return best, (self.count >= self.PROBES) & conditioned & near & torch.isfinite(best).all(-1)
+        fitted = conditioned & (singular == 0) & near & torch.isfinite(best).all(-1)
+        return best, (self.count >= self.PROBES) & fitted
 
 
 def parked_reading(env, observation: torch.Tensor, latency_steps: int | None = None) -> torch.Tensor:
