@@ -66,9 +66,10 @@ count."""
 RECORDED_RUNS = ROOT / "tests" / "data" / "training_reference.pt"
 """Each short run's final actor and metrics as one machine trained them, with that machine's identity
 (:func:`conftest.machine`), written by ``python tests/test_training.py`` (:func:`record_short_runs`)."""
-ACTOR_TOLERANCE = {"rtol": 1e-3, "atol": 1e-5}
-"""Another machine's recording: its actor within this. A change of what a seed trains moves the weights by their
-own size; the rounding of AVX2 instead of AVX512 on the recording machine, 1e-6 relative."""
+ACTOR_TOLERANCE = 0.05
+"""Another machine's recording: each of its actor's tensors within this of it, relative in norm. 800 frames of
+updates carry one machine's rounding into the weights: an AMD Zen 4 against the Intel recording moved them by up to
+9·10⁻³ (TD3's last layer; PPO, with fewer updates, 1·10⁻⁴), while another seed moves them by their own size (≥ 1)."""
 
 
 def short_run(name: str, run_dir: Path) -> dict:
@@ -100,7 +101,8 @@ def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, name):
             if mine:
                 assert torch.equal(state["actor"][key], value), f"{key}: not what this machine recorded"
             else:
-                torch.testing.assert_close(state["actor"][key], value, **ACTOR_TOLERANCE)
+                moved = torch.linalg.vector_norm(state["actor"][key] - value) / torch.linalg.vector_norm(value)
+                assert moved <= ACTOR_TOLERANCE, f"{key}: {moved:.1e} of its norm from another machine's recording"
         if mine:
             assert {key: metrics[key] for key in expected["metrics"]} == expected["metrics"]
 
