@@ -73,13 +73,33 @@ updates carry one machine's rounding into the weights: an AMD Zen 4 against the 
 
 
 def short_run(name: str, run_dir: Path) -> dict:
-    return train(compose_cfg("total_frames=800", "threads=1", *SHORT_RUNS[name]), run_dir)
+    return train(short_config(name), run_dir)
+
+
+def short_config(name: str):
+    return compose_cfg("total_frames=800", "threads=1", *SHORT_RUNS[name])
+
+
+def assert_the_reloaded_policy_scores_what_the_run_scored(cfg, metrics: dict, run_dir: Path, size: int) -> None:
+    """The run's saved policy, reloaded, has the observation of ``size`` values and the run's frames, and scores on
+    the closing evaluation's seas what the run scored."""
+    policy = load_policy(run_dir / "checkpoints" / "last.pt")
+    assert policy.file.observation_size == size and policy.config.env.frames == cfg.env.frames
+    config = EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
+    actor = policy.actor(cfg.actor, config.observation_size)
+    point = ((cfg.env.sea.wind, cfg.env.geometry.offset_ratio, cfg.env.geometry.offset_azimuth_deg),)
+    scenario = Scenario("check", "reload", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
+    reloaded = compare_policies(config, {"reloaded": actor}, scenario)["reloaded"]
+    for key in ("ratio_to_ub", "mean_gain"):
+        assert reloaded[key] == pytest.approx(metrics[f"agent/{key}"], rel=1e-6, abs=1e-12)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(SHORT_RUNS))
 def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, name):
+    """A short run of each agent on the defaults (the beacon's observation, 2 × 17 values)."""
     metrics = short_run(name, tmp_path)
+    assert_the_reloaded_policy_scores_what_the_run_scored(short_config(name), metrics, tmp_path, 2 * 17)
     assert metrics["frames"] == 800 and metrics["updates"] > 0
     logged = scalars(tmp_path)
     assert SCALARS <= set(logged), SCALARS - set(logged)
@@ -338,12 +358,10 @@ PRESET_RUNS = {
     "paper": (["+experiment=paper"], 8),
     "paper-observation-residual": (["env/observation=paper"], 2 * 8),
     "intensity": (["env/observation=intensity"], 2 * 28),
-    "beacon": ([], 2 * 17),
     "quadrant-flat-base-3-frames": (["env/observation=quadrant", "env.residual_base=flat_snell", "env.frames=3"], 39),
 }
-"""Short runs: each observation preset (the defaults, the beacon's: residual actions on the preset's base,
-realistic sensor, two frames; the quadrant's with three frames on flat-sea Snell), the paper preset (absolute
-actions, one frame); the observation size each gives."""
+"""Short runs: each observation preset but the defaults' (the beacon's, the short runs' above): the quadrant's with
+three frames on flat-sea Snell, the paper preset (absolute actions, one frame); the observation size each gives."""
 
 
 @pytest.mark.slow
@@ -354,16 +372,7 @@ def test_a_short_run_with_each_preset_trains_reloads_and_evaluates(run, tmp_path
     metrics = train(cfg, tmp_path)
     assert metrics["frames"] == 800 and metrics["updates"] > 0
     assert all(math.isfinite(metrics[f"agent/{key}"]) for key in ("ratio_to_ub", "mean_gain"))
-    policy = load_policy(tmp_path / "checkpoints" / "last.pt")
-    assert policy.file.observation_size == size and policy.config.env.frames == cfg.env.frames
-    config = EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
-    actor = policy.actor(cfg.actor, config.observation_size)
-    # The reloaded policy, evaluated on the closing evaluation's seas, scores what the run scored.
-    point = ((cfg.env.sea.wind, cfg.env.geometry.offset_ratio, cfg.env.geometry.offset_azimuth_deg),)
-    scenario = Scenario("check", "reload", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
-    reloaded = compare_policies(config, {"reloaded": actor}, scenario)["reloaded"]
-    for key in ("ratio_to_ub", "mean_gain"):
-        assert reloaded[key] == pytest.approx(metrics[f"agent/{key}"], rel=1e-6, abs=1e-12)
+    assert_the_reloaded_policy_scores_what_the_run_scored(cfg, metrics, tmp_path, size)
 
 
 def test_resume_compares_only_the_keys_a_group_option_sets(tmp_path):
