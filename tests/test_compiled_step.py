@@ -45,13 +45,14 @@ FIXED_LINK = {"wind_range": None, "offset_range": None}
 STEP = {
     "observation_extras": OBSERVATION_EXTRAS,
     "residual_base": "aoa_tracker",
+    "residual_beams": 2.0,
     "newton_iterations": 1,
     "divergence_values": (0.05, 0.01, 0.1, 0.02),
     **PAPER,
 }
 """The environment whose step is compiled: every observation part, the realistic sensor, residual actions on the
-quadrant tracker, links with divergences of their own, the paper's single path with one Newton iteration a step, so
-that links are finished on most steps."""
+quadrant tracker (the transmitter's within 2 ω_D), links with divergences of their own, the paper's single path
+with one Newton iteration a step, so that links are finished on most steps."""
 
 
 @pytest.fixture

@@ -461,9 +461,10 @@ def test_latest_run_is_the_newest_checkpoint(tmp_path):
 
 BEACON_KEYS = ("beacon", "beacon_noise_rad", "beacon_threshold")
 """The env keys of the drone's beacon (docs/model.md §4.9)."""
-LATER_KEYS = (*BEACON_KEYS, "divergence_range", "divergence_values")
-"""The env keys that came after ``intensity`` and ``paper`` were trained: the beacon's (their sensors read none)
-and each link's own divergence (they were trained at one, ``optics.divergence``)."""
+LATER_KEYS = (*BEACON_KEYS, "divergence_range", "divergence_values", "residual_beams")
+"""The env keys that came after ``intensity`` and ``paper`` were trained: the beacon's (their sensors read none),
+each link's own divergence (they were trained at one, ``optics.divergence``) and the transmitter's residual in
+beam widths (after ``default`` too; null, its default, is the residual they were trained with)."""
 
 
 @pytest.mark.parametrize("name", list(SHIPPED))

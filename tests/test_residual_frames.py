@@ -169,3 +169,32 @@ def test_residual_keys_are_validated():
     with pytest.raises(ValueError, match=r"env.residual_deg = 90"):
         EnvConfig(residual_deg=90.0)
     assert math.isclose(EnvConfig(frames=4, observation_extras=("spot",)).observation_size, 4 * 10)
+
+
+def test_residual_beams_caps_the_transmitters_correction_at_its_links_divergences_and_its_action_inverts_it():
+    """With ``env.residual_beams`` k, a full residual moves each link's transmitter k·ω_D from the base (at most
+    sin(residual_deg)) and its receiver sin(residual_deg); ``action_for_pointing`` gives back the action, link by
+    link; without it both move sin(residual_deg)."""
+    spread = (0.005, 0.01, 0.05)
+    config = EnvConfig(
+        action_mode="residual", residual_deg=1.0, divergence_values=spread, dtype="float64", **SMALL, **SENSING
+    )
+    reach = math.sin(math.radians(1.0))
+    for beams, tx_reach in ((None, [reach] * 3), (1.0, [0.005, 0.01, reach])):
+        env = WaterAirEnv(config.replace(residual_beams=beams))
+        td = env.rollout(SENSING["latency_steps"] + 1, zero_action)[..., -1]["next"]  # past the parked reading
+        action = torch.tensor([[1.0, -1.0, -1.0, 1.0]]).expand(6, 4) * torch.linspace(0.2, 1.0, 6).unsqueeze(-1)
+        base = td["base_tilt"].double()
+        moved = env.step(td.set("action", action))["next", "tilt"].double() - base
+        expected = torch.tensor(tx_reach * 2, dtype=torch.float64)[[0, 1, 2, 0, 1, 2]]  # divergences cycle
+        torch.testing.assert_close(moved[:, :2], action[:, :2].double() * expected.unsqueeze(-1), rtol=1e-9, atol=0)
+        torch.testing.assert_close(moved[:, 2:], action[:, 2:].double() * reach, rtol=1e-9, atol=0)
+        up, down = base[:, :2] + moved[:, :2], base[:, 2:] + moved[:, 2:]
+        directions = (
+            torch.cat((v, sign * (1 - v.square().sum(-1, keepdim=True)).sqrt()), -1)
+            for v, sign in ((up, 1), (down, -1))
+        )
+        again = env.action_for_pointing(*directions, base=base, divergence=td["divergence"])
+        torch.testing.assert_close(again, action.double(), rtol=1e-9, atol=1e-12)
+    with pytest.raises(ValueError, match=r"env.residual_beams = 0"):
+        EnvConfig(residual_beams=0.0)

@@ -40,7 +40,8 @@ class PointingPolicy(TensorDictModuleBase):
         # of the batch, and in delta mode also when the sensors' pointing telemetry is late; in
         # residual mode each row's base controller tilts come with it too.
         base = tensordict.get("base_tilt", None)
-        action = self.env.action_for_pointing(tx_dir, rx_dir, tensordict.get("tilt"), base)
+        divergence = tensordict.get("divergence", None)
+        action = self.env.action_for_pointing(tx_dir, rx_dir, tensordict.get("tilt"), base, divergence)
         tensordict.set("action", action)
         return tensordict
 

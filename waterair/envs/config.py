@@ -103,6 +103,7 @@ class EnvConfig:
     max_steps: int = 500  # steps per episode (truncation)
     action_mode: str = "absolute"  # absolute | delta | residual (on top of residual_base's pointing)
     residual_deg: float = 15.0  # residual mode: the largest deviation from the base controller's pointing
+    residual_beams: float | None = None  # residual mode: the transmitter's, at most this many of its link's ω_D
     residual_base: str = "flat_snell"  # residual mode: flat_snell | aoa_tracker | beacon_tracker (BASE_NEEDS)
     max_tilt_deg: float = 45.0  # largest pointing tilt from vertical
     max_slew_deg_s: float = 60.0  # delta mode: largest tilt change per second
@@ -162,6 +163,8 @@ class EnvConfig:
         check_range("env.max_tilt_deg", self.max_tilt_deg, 0.0, 90.0, low_open=True, high_open=True, unit="deg")
         check_range("env.max_slew_deg_s", self.max_slew_deg_s, 0.0, 1e5, low_open=True, unit="deg/s")
         check_range("env.residual_deg", self.residual_deg, 0.0, 90.0, low_open=True, high_open=True, unit="deg")
+        if self.residual_beams is not None:
+            check_range("env.residual_beams", self.residual_beams, 0.0, 100.0, low_open=True)
         _check_list("env.observation_extras", self.observation_extras)
         object.__setattr__(self, "observation_extras", tuple(self.observation_extras))
         for extra in self.observation_extras:

@@ -31,6 +31,7 @@ class StepConstants:
     max_tilt: float
     residual: float
     residual_base: str
+    residual_beams: float | None
     slew_step: float
     dt: float
     episode_seconds: float
@@ -56,6 +57,7 @@ class StepConstants:
             max_tilt=config.max_tilt,
             residual=math.sin(math.radians(config.residual_deg)),
             residual_base=config.residual_base,
+            residual_beams=config.residual_beams,
             slew_step=math.sin(math.radians(config.max_slew_deg_s * config.dt)),
             dt=config.dt,
             episode_seconds=config.episode_seconds,
@@ -85,4 +87,5 @@ class StepConstants:
             self,
             sensor=self.sensor.traced(device, dtype),
             residual=traced(self.residual, device, dtype),  # type: ignore[arg-type]  # a tensor only in the compiled step's copy
+            residual_beams=None if self.residual_beams is None else traced(self.residual_beams, device, dtype),  # type: ignore[arg-type]
         )

@@ -213,20 +213,27 @@ class WaterAirEnv(EnvBase):
         rx_dir: torch.Tensor,
         current: torch.Tensor | None = None,
         base: torch.Tensor | None = None,
+        divergence: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """The action ``[n, 4]`` that best points the ends along ``tx_dir`` (up) and ``rx_dir`` (down).
 
         Absolute mode: the target tilts (clipped to the action box); delta mode: the step toward
         them allowed by the slew limit, from the ``current`` tilts ``[n, 4]`` (tx_vx, tx_vy,
         rx_vx, rx_vy; default: the whole batch's present pointing); residual mode: the deviation
-        from the base controller's tilts ``base`` ``[n, 4]`` (the ``base_tilt`` key; default: the batch's).
+        from the base controller's tilts ``base`` ``[n, 4]`` (the ``base_tilt`` key; default: the batch's),
+        in units of each link's reach (with ``env.residual_beams``, from its ω_D ``divergence`` ``[n]``, the
+        ``divergence`` key; default: the batch's).
         """
         target = torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1).to(self.float_dtype)
         if self.config.action_mode == "absolute":
             return (target / self.config.max_tilt).clamp(-1.0, 1.0)
         if self.config.action_mode == "residual":
             base = self._base_tilt if base is None else base.to(self.float_dtype)
-            return ((target - base) / self.constants.residual).clamp(-1.0, 1.0)
+            reach: float | torch.Tensor = self.constants.residual
+            if self.constants.residual_beams is not None:
+                divergence = self.state.divergence if divergence is None else divergence
+                reach = kernel.residual_reach(self.constants, divergence.to(self.float_dtype)).repeat_interleave(2, -1)
+            return ((target - base) / reach).clamp(-1.0, 1.0)
         if current is None:
             current = self.tilt
         return ((target - current.to(self.float_dtype)) / self.constants.slew_step).clamp(-1.0, 1.0)

@@ -61,8 +61,8 @@ def advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
     elif c.action_mode == "residual":
         # the correction applies from the first reading taken with the controller's own pointing
         base, tracking = base_tilts(c, state), ~read_parked(state.steps, c.sensor.latency_steps)
-        residual = action * (c.residual * tracking.to(action.dtype)).unsqueeze(-1)
-        tx, rx = base[:, :2] + residual[:, :2], base[:, 2:] + residual[:, 2:]
+        reach = residual_reach(c, state.divergence.to(action.dtype)) * tracking.to(action.dtype).unsqueeze(-1)
+        tx, rx = base[:, :2] + action[:, :2] * reach[:, :1], base[:, 2:] + action[:, 2:] * reach[:, 1:]
     else:
         tx, rx = state.tx_tilt + action[:, :2] * c.slew_step, state.rx_tilt + action[:, 2:] * c.slew_step
     return Moved(
@@ -72,6 +72,15 @@ def advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
         time=state.time + c.dt,
         steps=state.steps + 1,
     )
+
+
+def residual_reach(c: StepConstants, divergence: torch.Tensor) -> torch.Tensor:
+    """The largest residual correction ``[n, 2]`` (a tilt's sine) of each link's transmitter and receiver, for
+    its ω_D ``[n]``: sin(residual_deg), the transmitter's at most residual_beams · ω_D where that is set, so that
+    a narrow beam's correction stays within a few of its widths (docs/environment.md, "Residual actions")."""
+    reach = torch.full_like(divergence, 1.0) * c.residual
+    tx = reach if c.residual_beams is None else torch.minimum(c.residual_beams * divergence, reach)
+    return torch.stack((tx, reach), dim=-1)
 
 
 def flat_tilts(point: torch.Tensor, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:

@@ -22,6 +22,7 @@ INTERFACE_KEYS = (
     "max_tilt_deg",
     "max_slew_deg_s",
     "residual_deg",
+    "residual_beams",
     "residual_base",
     "observation_extras",
     "history_length",
