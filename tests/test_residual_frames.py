@@ -186,7 +186,7 @@ def test_residual_beams_caps_the_transmitters_correction_at_its_links_divergence
         action = torch.tensor([[1.0, -1.0, -1.0, 1.0]]).expand(6, 4) * torch.linspace(0.2, 1.0, 6).unsqueeze(-1)
         base = td["base_tilt"].double()
         moved = env.step(td.set("action", action))["next", "tilt"].double() - base
-        expected = torch.tensor(tx_reach * 2, dtype=torch.float64)[[0, 1, 2, 0, 1, 2]]  # divergences cycle
+        expected = torch.tensor(tx_reach * 2, dtype=torch.float64)  # the six links cycle through the divergences
         torch.testing.assert_close(moved[:, :2], action[:, :2].double() * expected.unsqueeze(-1), rtol=1e-9, atol=0)
         torch.testing.assert_close(moved[:, 2:], action[:, 2:].double() * reach, rtol=1e-9, atol=0)
         up, down = base[:, :2] + moved[:, :2], base[:, 2:] + moved[:, 2:]
