@@ -72,10 +72,6 @@ updates carry one machine's rounding into the weights: an AMD Zen 4 against the 
 9·10⁻³ (TD3's last layer; PPO, with fewer updates, 1·10⁻⁴), while another seed moves them by their own size (≥ 1)."""
 
 
-def short_run(name: str, run_dir: Path) -> dict:
-    return train(short_config(name), run_dir)
-
-
 def short_config(name: str):
     return compose_cfg("total_frames=800", "threads=1", *SHORT_RUNS[name])
 
@@ -98,8 +94,9 @@ def assert_the_reloaded_policy_scores_what_the_run_scored(cfg, metrics: dict, ru
 @pytest.mark.parametrize("name", list(SHORT_RUNS))
 def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, name):
     """A short run of each agent on the defaults (the beacon's observation, 2 × 17 values)."""
-    metrics = short_run(name, tmp_path)
-    assert_the_reloaded_policy_scores_what_the_run_scored(short_config(name), metrics, tmp_path, 2 * 17)
+    cfg = short_config(name)
+    metrics = train(cfg, tmp_path)
+    assert_the_reloaded_policy_scores_what_the_run_scored(cfg, metrics, tmp_path, 2 * 17)
     assert metrics["frames"] == 800 and metrics["updates"] > 0
     logged = scalars(tmp_path)
     assert SCALARS <= set(logged), SCALARS - set(logged)
@@ -138,7 +135,7 @@ def record_short_runs(path: Path = RECORDED_RUNS) -> None:
     runs = {}
     for name in SHORT_RUNS:
         with tempfile.TemporaryDirectory() as run_dir:
-            metrics = short_run(name, Path(run_dir))
+            metrics = train(short_config(name), Path(run_dir))
             actor = torch.load(Path(run_dir) / "checkpoints" / "last.pt", weights_only=True)["actor"]
         runs[name] = {"actor": actor, "metrics": {k: v for k, v in metrics.items() if k != "train_seconds"}}
     path.parent.mkdir(parents=True, exist_ok=True)
