@@ -15,7 +15,15 @@ from waterair.agents.networks import make_actor
 from waterair.evaluation.figures import physics_figures
 from waterair.evaluation.metrics import METRICS
 from waterair.evaluation.per_divergence import serving
-from waterair.evaluation.policies import SHIPPED, LearnedPolicy, latest_run, load_policy, shipped_policy
+from waterair.evaluation.policies import (
+    SHIPPED,
+    TRAINED_ON,
+    LearnedPolicy,
+    latest_run,
+    load_policy,
+    shipped_policy,
+    trained_on,
+)
 from waterair.evaluation.report import ROW_KEYS, write_outputs
 from waterair.evaluation.runner import compare_policies, evaluate, prepare
 from waterair.physics.sea import ElfouhailySea, JonswapSea
@@ -286,6 +294,19 @@ def test_the_policy_acting_at_a_divergence_is_the_one_trained_nearest_on_a_log_s
     assert serving(policies, 0.009) == [five, lone]  # 1.8× from 5 mrad, 2.2× from 20
     assert serving(policies, 0.01) == [twenty, lone]  # 2× from each: the wider beam
     assert serving(policies, 0.1) == [twenty, lone]  # the lone policy acts everywhere
+
+
+def test_the_report_says_what_a_policy_was_trained_on_each_draws_range_or_its_one_value():
+    # the shipped default draws every condition per link: the report names each range, as its config holds it
+    shipped = OmegaConf.to_container(OmegaConf.load(shipped_policy("default").with_suffix(".yaml")), resolve=True)
+    assert trained_on(shipped["env"]) == {draw: shipped["env"][draw] for draw in TRAINED_ON}
+    assert trained_on(shipped["env"])["divergence_range"] == [0.005, 0.1]
+    # a run at one point: the values the ranges would replace, by their nested keys
+    point = ["env.wind_range=null", "env.divergence_range=null", "env.sea.wind=8", "env.optics.divergence=0.01"]
+    env = OmegaConf.to_container(compose_config("config", point), resolve=True)["env"]
+    said = trained_on(env)
+    assert said["sea.wind"] == 8.0 and said["optics.divergence"] == 0.01
+    assert "wind_range" not in said and "divergence_range" not in said and said["offset_range"] == env["offset_range"]
 
 
 @pytest.mark.parametrize(

@@ -129,3 +129,25 @@ def _default_label(path: Path, config: DictConfig | None) -> str:
         return f"{agent} {path.stem}"
     run_dir = path.parent.parent if path.parent.name == "checkpoints" else path.parent
     return f"{agent} {run_dir.name}"
+
+
+TRAINED_ON = {
+    "wind_range": ("sea", "wind"),
+    "wind_direction_range": ("sea", "wind_direction_deg"),
+    "offset_range": ("geometry", "offset_ratio"),
+    "offset_azimuth_range": ("geometry", "offset_azimuth_deg"),
+    "divergence_range": ("optics", "divergence"),
+}
+"""What the report says a learned policy was trained on: each per-link draw's range, else its one value."""
+
+
+def trained_on(env: Mapping) -> dict:
+    """``{key: value}`` of :data:`TRAINED_ON` in a training config's ``env`` section: the range where one is set
+    (e.g. ``wind_range``), else the value it replaces (``sea.wind``); keys the config lacks are left out."""
+    said = {}
+    for draw, (group, key) in TRAINED_ON.items():
+        if env.get(draw) is not None:
+            said[draw] = env[draw]
+        elif env.get(group, {}).get(key) is not None:
+            said[f"{group}.{key}"] = env[group][key]
+    return said

@@ -31,7 +31,14 @@ from waterair.evaluation.compiling import compiled_group, note_compiled
 from waterair.evaluation.divergence import at_divergence, outage_against_power, scenario_link
 from waterair.evaluation.metrics import phase_metrics, scenario_metrics
 from waterair.evaluation.per_divergence import labelled, name_policies, serving, trained_divergence
-from waterair.evaluation.policies import INTERFACE_KEYS, LearnedPolicy, as_list, checkpoint_sources, load_policy
+from waterair.evaluation.policies import (
+    INTERFACE_KEYS,
+    LearnedPolicy,
+    as_list,
+    checkpoint_sources,
+    load_policy,
+    trained_on,
+)
 from waterair.evaluation.rollouts import REFERENCES, rollout_policies
 from waterair.evaluation.scenarios import Scenario, scenarios_from_config
 from waterair.physics.link import LinkBudget
@@ -368,9 +375,7 @@ def _describe(policies: Sequence[LearnedPolicy], base: EnvConfig) -> dict:
     divergence, file and frames where there are several (a policy per divergence)."""
     policy = serving(policies, base.optics.divergence)[0]
     trained = OmegaConf.to_container(policy.config, resolve=True) if policy.config else {}
-    env = trained.get("env", {})
-    keys = ("wind", "fetch", "offset_ratio", "wind_range", "offset_range")
-    differs = {k: v for k, v in env.items() if k in keys and v is not None}
+    differs = trained_on(trained.get("env", {}))
     entry = {
         "label": policy.label,
         "kind": "learned",
