@@ -31,6 +31,14 @@ INTERFACE_KEYS = (
     "dtype",
 )
 """Environment keys a learned policy keeps from its own training config; the scenario sets the rest."""
+TRAINED_ON = {
+    "wind_range": ("sea", "wind"),
+    "wind_direction_range": ("sea", "wind_direction_deg"),
+    "offset_range": ("geometry", "offset_ratio"),
+    "offset_azimuth_range": ("geometry", "offset_azimuth_deg"),
+    "divergence_range": ("optics", "divergence"),
+}
+"""What the report says a learned policy was trained on: each per-link draw's range, else its one value."""
 SHIPPED = {
     "default": (),
     "intensity": ("env/observation=intensity",),
@@ -129,16 +137,6 @@ def _default_label(path: Path, config: DictConfig | None) -> str:
         return f"{agent} {path.stem}"
     run_dir = path.parent.parent if path.parent.name == "checkpoints" else path.parent
     return f"{agent} {run_dir.name}"
-
-
-TRAINED_ON = {
-    "wind_range": ("sea", "wind"),
-    "wind_direction_range": ("sea", "wind_direction_deg"),
-    "offset_range": ("geometry", "offset_ratio"),
-    "offset_azimuth_range": ("geometry", "offset_azimuth_deg"),
-    "divergence_range": ("optics", "divergence"),
-}
-"""What the report says a learned policy was trained on: each per-link draw's range, else its one value."""
 
 
 def trained_on(env: Mapping) -> dict:

@@ -375,14 +375,13 @@ def _describe(policies: Sequence[LearnedPolicy], base: EnvConfig) -> dict:
     divergence, file and frames where there are several (a policy per divergence)."""
     policy = serving(policies, base.optics.divergence)[0]
     trained = OmegaConf.to_container(policy.config, resolve=True) if policy.config else {}
-    differs = trained_on(trained.get("env", {}))
     entry = {
         "label": policy.label,
         "kind": "learned",
         "source": _shown(policy.path),
         "frames": policy.file.frames,
         "agent": trained.get("agent", {}).get("name"),
-        "trained_on": differs,
+        "trained_on": trained_on(trained.get("env", {})),
         "observation_size": policy.file.observation_size,
     }
     if len(policies) > 1:
