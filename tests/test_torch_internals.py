@@ -1,7 +1,8 @@
 """The torch and tensordict internals the compiled step relies on, each guarded by a test whose failure names it,
 so that a release which changes one is found by ``make test`` and not by a slow run (an evaluation that compiles
 a graph per batch, a step that runs eagerly after a wall of warnings). Traced with dynamo's counting backend
-or AOT autograd's eager one: nothing here compiles code."""
+or AOT autograd's eager one; one test compiles two small kernels to C++ (inductor's loops,
+:mod:`waterair.core.inductor`)."""
 
 from collections.abc import Callable
 
@@ -10,6 +11,7 @@ import torch
 from torch._dynamo.testing import CompileCounter
 
 from tests.conftest import paper_physics
+from waterair.core import inductor
 from waterair.envs import stepper
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.sensors import TRACED_SETTINGS
@@ -154,3 +156,36 @@ def test_every_setting_the_compiled_step_reads_is_a_one_element_tensor_in_its_dt
         name: ((1,), env.float_dtype) for name in settings
     }
     assert settings["intensity_noise"].item() == pytest.approx(0.1)
+
+
+def test_a_sum_over_nodes_of_vectors_shares_its_rows_between_threads_not_each_rows_sum(monkeypatch):
+    from torch._inductor import config
+    from torch._inductor.codegen import cpp
+    from torch._inductor.utils import fresh_cache, run_and_get_cpp_code
+
+    assert inductor.replaced_source_digest() == inductor.REPLACED_SOURCE, (
+        f"{inductor.REPLACED} is no longer torch 2.13.0's: waterair.core.inductor does not fix it; see whether this "
+        "torch still opens a thread team per row (this test, with the fix left out) and drop or update the fix"
+    )
+    assert inductor.fix_parallel_depth()
+    fixed = cpp.LoopNest.max_parallel_depth
+    weight, vectors = torch.rand(64, 81), torch.rand(64, 81, 3)
+
+    def sums(weight, vectors):  # as the light's mean direction over a lattice's nodes
+        directions = vectors / torch.linalg.vector_norm(vectors, dim=-1, keepdim=True)
+        return (weight.unsqueeze(-1) * directions).sum(1) / weight.sum(1, keepdim=True)
+
+    def thread_teams(depth) -> int:
+        monkeypatch.setattr(cpp.LoopNest, "max_parallel_depth", depth)
+        # vector loops (the tests' scalar ones never meet the fault), two threads, compiled afresh
+        with config.patch({"cpp.simdlen": None, "cpp.threads": 2, "fx_graph_cache": False}), fresh_cache():
+            torch._dynamo.reset()
+            values, code = run_and_get_cpp_code(torch.compile(sums), weight, vectors)
+        torch.testing.assert_close(values, sums(weight, vectors))
+        return code.count("#pragma omp parallel")
+
+    assert thread_teams(fixed.replaced) > 1, (
+        f"torch's own {inductor.REPLACED} no longer opens a thread team per row of a sum over nodes of 3-vectors: "
+        "waterair.core.inductor's fix is not needed any more"
+    )
+    assert thread_teams(fixed) == 1, f"the fixed {inductor.REPLACED} still opens a thread team per row"

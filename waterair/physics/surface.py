@@ -20,6 +20,7 @@ from typing import NamedTuple
 import torch
 from tensordict import TensorClass
 
+from waterair.core.inductor import fix_parallel_depth
 from waterair.core.validation import check_int
 from waterair.physics.sea import SeaState
 from waterair.physics.sea.slopes import rotated_covariance
@@ -56,8 +57,8 @@ class Harmonics(NamedTuple):
 EAGER_CHUNK_ELEMENTS = 2**18
 """Points × harmonics an eager :func:`harmonic_sums` evaluates at once. Rows are independent, so chunks of
 seas give the same values as one pass (the evaluation's metrics bit for bit), and far faster: at B = 608
-seas, 81 points and 768 harmonics (a lattice) one pass took 560 ms, 4-row chunks (2^18 elements) 90 ms and
-8-row chunks 500 ms, on 2 threads (docs/benchmarks.md, "Eager surface sums")."""
+seas, 81 points and 768 harmonics (a lattice) one pass took 555 ms and 4-row chunks (2^18 elements) 88 ms, on
+2 threads (docs/benchmarks.md, "Eager surface sums")."""
 
 
 def harmonic_sums(sea: Harmonics, x, y, t, order: int):
@@ -160,6 +161,7 @@ def compiled_harmonic_sums():
     ~30-60 s per process. Shapes are dynamic, so batch-size changes do not recompile. Asking for
     it changes nothing for callers that evaluate eagerly.
     """
+    fix_parallel_depth()
     return torch.compile(harmonic_sums, dynamic=True)
 
 

@@ -18,6 +18,7 @@ from torchrl.modules import AdditiveGaussianModule, OrnsteinUhlenbeckProcessModu
 from torchrl.objectives import SoftUpdate
 
 from waterair.agents.networks import make_critic
+from waterair.core.inductor import fix_parallel_depth
 from waterair.core.validation import check_range
 from waterair.training.algorithms.base import Algorithm, Counters, Learn, Update, adam, updates_per_batch
 
@@ -123,7 +124,10 @@ class OffPolicy(Algorithm):
             # turns a whole batch of these into numbers once.
             return torch.stack((losses["loss_actor"], losses[value_key])).detach()
 
-        return torch.compile(update) if self.cfg.compile_update else update
+        if not self.cfg.compile_update:
+            return update
+        fix_parallel_depth()
+        return torch.compile(update)
 
     def make_learn(self, loss, update: Update, buffer, noise) -> Learn:
         """Anneal the noise, store the batch's transitions, then take ``collector.updates_per_frame`` × its
