@@ -5,10 +5,11 @@ shares the inner reduction instead. It counts a loop's steps by floor division o
 so a vectorised loop shorter than one vector (the three components of a ``[B, N, 3]`` sum over N: 3
 elements, a step of 16) counts zero, the outer loops count zero steps whatever B is, and the kernel
 becomes a serial loop over the B rows that opens an OpenMP thread team for each row's sum over N.
-The full channel's step had 18 such sums (the light's directions and centroids over the lattice's
-nodes): 18 × B thread teams a step. :func:`fix_parallel_depth` counts the steps by ceiling division, as
+The full channel's step had 18 such sums (of 3-vectors over a lattice's nodes): 18 × B thread teams a
+step. :func:`fix_parallel_depth` counts the steps by ceiling division, as
 torch's own later fix does (pytorch/pytorch#190928); a kernel whose outer loops really are short still
-shares its reduction. Measured in docs/benchmarks.md ("Environment", the thread teams).
+shares its reduction. Measured in docs/benchmarks.md ("Channels", "A thread team per row"). torch's compile
+cache does not key on the fix: graphs a machine compiled before it keep their loops until the cache is emptied.
 
 The replaced function is checked against the source it replaces (:data:`REPLACED_SOURCE`): under another
 torch the fix is not applied, and ``tests/test_torch_internals.py`` fails, naming the function.
