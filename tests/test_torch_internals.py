@@ -169,6 +169,9 @@ def test_a_sum_over_nodes_of_vectors_shares_its_rows_between_threads_not_each_ro
     )
     assert inductor.fix_parallel_depth()
     fixed = cpp.LoopNest.max_parallel_depth
+    # graphs compiled before the fix are not loaded from torch's compile cache: the fix is in its key
+    assert config.post_grad_custom_post_pass is inductor.cache_key_pass()
+    assert inductor.REPLACED_SOURCE in inductor.cache_key_pass().uuid()
     weight, vectors = torch.rand(64, 81), torch.rand(64, 81, 3)
 
     def sums(weight, vectors):  # as the light's mean direction over a lattice's nodes

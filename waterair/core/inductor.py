@@ -8,8 +8,9 @@ becomes a serial loop over the B rows that opens an OpenMP thread team for each 
 The full channel's step had 18 such sums (of 3-vectors over a lattice's nodes): 18 × B thread teams a
 step. :func:`fix_parallel_depth` counts the steps by ceiling division, as
 torch's own later fix does (pytorch/pytorch#190928); a kernel whose outer loops really are short still
-shares its reduction. Measured in docs/benchmarks.md ("Channels", "A thread team per row"). torch's compile
-cache does not key on the fix: graphs a machine compiled before it keep their loops until the cache is emptied.
+shares its reduction. Measured in docs/benchmarks.md ("Channels", "A thread team per row"). The fix is part of
+the key of torch's compile cache (:func:`cache_key_pass`): graphs a machine compiled before it are compiled
+again, not loaded with their old loops.
 
 The replaced function is checked against the source it replaces (:data:`REPLACED_SOURCE`): under another
 torch the fix is not applied, and ``tests/test_torch_internals.py`` fails, naming the function.
@@ -39,6 +40,7 @@ def replaced_source_digest() -> str:
 def fix_parallel_depth() -> bool:
     """Replace :data:`REPLACED` by :func:`_max_parallel_depth` (once per process); whether it was replaced (not
     under a torch whose function differs from the one this fixes)."""
+    from torch._inductor import config
     from torch._inductor.codegen import cpp
     from torch._inductor.utils import cache_on_self
 
@@ -47,7 +49,25 @@ def fix_parallel_depth() -> bool:
     fixed = cache_on_self(_max_parallel_depth)
     fixed.replaced = cpp.LoopNest.max_parallel_depth  # type: ignore[attr-defined]  # what the tests compare with
     cpp.LoopNest.max_parallel_depth = fixed
+    if config.post_grad_custom_post_pass is None:  # a pass of the user's own is left alone
+        config.post_grad_custom_post_pass = cache_key_pass()
     return True
+
+
+@functools.cache
+def cache_key_pass():
+    """A post-grad pass of inductor's that changes nothing and whose ``uuid`` names the fix: torch's compile
+    cache keys its graphs on it."""
+    from torch._inductor.custom_graph_pass import CustomGraphPass
+
+    class FixedParallelDepth(CustomGraphPass):
+        def __call__(self, graph) -> None:
+            return None
+
+        def uuid(self) -> str:
+            return f"waterair.core.inductor: {REPLACED} by ceiling division ({REPLACED_SOURCE})"
+
+    return FixedParallelDepth()
 
 
 def _max_parallel_depth(self):
