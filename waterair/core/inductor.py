@@ -36,6 +36,15 @@ def replaced_source_digest() -> str:
     return hashlib.sha256(source.encode()).hexdigest()[:16]
 
 
+def torch_compile(function, **options):
+    """``torch.compile(function, **options)`` with the code generator fixed first (:func:`fix_parallel_depth`):
+    how every compile site of the package compiles."""
+    import torch
+
+    fix_parallel_depth()
+    return torch.compile(function, **options)
+
+
 @functools.cache
 def fix_parallel_depth() -> bool:
     """Replace :data:`REPLACED` by :func:`_max_parallel_depth` (once per process); whether it was replaced (not

@@ -18,7 +18,7 @@ from collections.abc import Iterator
 import torch
 from tensordict import TensorDict, is_tensorclass
 
-from waterair.core.inductor import fix_parallel_depth
+from waterair.core.inductor import torch_compile
 from waterair.envs import kernel
 from waterair.envs.constants import StepConstants
 from waterair.envs.state import StepResult, StepState
@@ -77,8 +77,7 @@ def compiled(name: str):
     dynamo.accumulated_recompile_limit = max(dynamo.accumulated_recompile_limit, 4 * RECOMPILE_LIMIT)
     for kind in MEMO_TYPES:  # see MEMO_TYPES
         is_tensorclass(kind)
-    fix_parallel_depth()
-    return torch.compile(getattr(kernel, name))
+    return torch_compile(getattr(kernel, name))
 
 
 class Stepper:

@@ -20,7 +20,7 @@ from typing import NamedTuple
 import torch
 from tensordict import TensorClass
 
-from waterair.core.inductor import fix_parallel_depth
+from waterair.core.inductor import torch_compile
 from waterair.core.validation import check_int
 from waterair.physics.sea import SeaState
 from waterair.physics.sea.slopes import rotated_covariance
@@ -161,8 +161,7 @@ def compiled_harmonic_sums():
     ~30-60 s per process. Shapes are dynamic, so batch-size changes do not recompile. Asking for
     it changes nothing for callers that evaluate eagerly.
     """
-    fix_parallel_depth()
-    return torch.compile(harmonic_sums, dynamic=True)
+    return torch_compile(harmonic_sums, dynamic=True)
 
 
 class WaveSurface(TensorClass):

@@ -18,7 +18,7 @@ from torchrl.modules import AdditiveGaussianModule, OrnsteinUhlenbeckProcessModu
 from torchrl.objectives import SoftUpdate
 
 from waterair.agents.networks import make_critic
-from waterair.core.inductor import fix_parallel_depth
+from waterair.core.inductor import torch_compile
 from waterair.core.validation import check_range
 from waterair.training.algorithms.base import Algorithm, Counters, Learn, Update, adam, updates_per_batch
 
@@ -124,10 +124,7 @@ class OffPolicy(Algorithm):
             # turns a whole batch of these into numbers once.
             return torch.stack((losses["loss_actor"], losses[value_key])).detach()
 
-        if not self.cfg.compile_update:
-            return update
-        fix_parallel_depth()
-        return torch.compile(update)
+        return torch_compile(update) if self.cfg.compile_update else update
 
     def make_learn(self, loss, update: Update, buffer, noise) -> Learn:
         """Anneal the noise, store the batch's transitions, then take ``collector.updates_per_frame`` × its
