@@ -303,3 +303,46 @@ def test_a_groups_graph_in_an_evaluation_does_not_depend_on_the_groups_before_it
 
     alone, after = realistic_graph(after_ideal=False), realistic_graph(after_ideal=True)
     assert "packets" in alone and alone == after
+
+
+MIXED = ({}, {"action_mode": "residual", "residual_deg": 1.0}, {"action_mode": "delta"})
+"""Three replicas acting three ways: absolute tilts, a residual on the quadrant tracker, slew steps."""
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_replicas_that_act_their_own_ways_each_step_as_an_environment_of_that_way(compiled, eager_path_kernels):
+    """``env.replica_actions`` (evaluation's groups of policies that act differently): replica k of a batch steps as
+    replica k of a batch in which every replica acts its way, on the same seas and actions; compiled (traced by
+    dynamo, run eagerly: the graph's logic, not inductor's code) as eager. The paper's single path, float64."""
+    base = preset_config("quadrant", "realistic", 6, **FIXED_LINK, **PAPER)
+    base = base.replace(replicas=3, residual_base="aoa_tracker", dtype="float64")
+    actions = torch.linspace(-1.0, 1.0, 4 * 6 * 4, dtype=torch.float64).reshape(4, 6, 4).sin()
+    alike = [rollout(WaterAirEnv(base.replace(**way)), actions) for way in MIXED]
+    mixed = base.replace(replica_actions=MIXED, compile_kernel=compiled)
+    if compiled:
+        torch._dynamo.reset()
+        with stepper.varying_environments():
+            stepper.compiled.cache_clear()
+            steps = {name: torch.compile(getattr(kernel, name), backend="eager") for name in ("step", "finish")}
+            env = WaterAirEnv(mixed)
+            env.stepper._step, env.stepper._finish = steps["step"], steps["finish"]
+            got = rollout(env, actions)
+    else:
+        got = rollout(WaterAirEnv(mixed), actions)
+    for k, expected in enumerate(alike):
+        rows = slice(2 * k, 2 * k + 2)
+        for key in COMPARED:
+            torch.testing.assert_close(got[key][:, rows], expected[key][:, rows], rtol=1e-12, atol=1e-15, msg=key)
+    # the ways differ: the same action points each replica elsewhere
+    assert not torch.allclose(got["gain"][:, 0:2], got["gain"][:, 2:4])
+
+
+def test_replica_actions_are_checked_naming_the_entry():
+    base = preset_config("quadrant", "ideal", 4).replace(replicas=2)
+    with pytest.raises(ValueError, match=r"^env.replica_actions has 1 entries for env.replicas = 2"):
+        base.replace(replica_actions=[{}])
+    with pytest.raises(ValueError, match=r"^env.replica_actions\[1\] = \{'frames': 2\} must map some of action_mode"):
+        base.replace(replica_actions=[{}, {"frames": 2}])
+    with pytest.raises(ValueError, match=r"^env.replica_actions\[0\]: env.residual_deg = 95"):
+        base.replace(replica_actions=[{"residual_deg": 95.0}, {}])
+    assert base.replace(replica_actions=[{}, {"action_mode": "delta"}]).replica_configs()[1].action_mode == "delta"

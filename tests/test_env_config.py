@@ -335,3 +335,13 @@ def test_each_default_is_stated_once_by_the_dataclasses_and_the_yaml_and_docs_re
     assert {key: yaml.pop(key) for key in decided} == decided
     expected = {key: value for key, value in EnvConfig().to_mapping().items() if key not in decided}
     assert {key: plain(value) for key, value in yaml.items()} == {key: plain(v) for key, v in expected.items()}
+
+
+def test_a_policy_reads_its_own_columns_frame_by_frame_out_of_a_wider_observation():
+    own = EnvConfig(observation_extras=("beacon",), frames=2)
+    wide = EnvConfig(observation_extras=("spot", "beacon", "geometry"), frames=3)  # frames of 8 + 2 + 2 + 2
+    assert wide.frame_size == 14
+    assert own.columns_in(wide) == [*range(8), 10, 11, *range(14, 22), 24, 25]
+    assert own.columns_in(own) == list(range(own.observation_size))
+    with pytest.raises(ValueError, match="lacks a part"):
+        wide.columns_in(own)

@@ -43,6 +43,8 @@ RESIDUAL_BASES = ("flat_snell", "aoa_tracker", "beacon_tracker")
 along its own reading (the beacon at the transmitter, the spot at the receiver)."""
 BASE_NEEDS = {"aoa_tracker": ("spot", "spot_valid"), "beacon_tracker": ("spot", "spot_valid", "beacon", "beacon_valid")}
 """The observation parts each residual base reads."""
+ACTION_KEYS = ("action_mode", "residual_deg", "residual_beams", "residual_base")
+"""The keys that say how an action turns into tilts, which ``replica_actions`` may set per replica."""
 PER_LINK = {
     "wind": (0.0, 60.0, "m/s"),
     "offset": (0.0, 10.0, ""),
@@ -136,6 +138,9 @@ class EnvConfig:
     divergence_values: tuple[float, ...] | None = None  # rad
     # the batch is `replicas` copies of num_envs / replicas links with identical seas (paired comparisons)
     replicas: int = 1
+    # evaluation's groups: replica k acts as replica_actions[k] says, a mapping of ACTION_KEYS (the keys above
+    # where it names none; kept as (key, value) pairs); null: every replica acts as the keys above say
+    replica_actions: tuple[Mapping | tuple, ...] | None = None
     # torch.compile the whole step into one graph (one-off compile, cached by torch per machine;
     # ~4x faster CPU steps at B = 16, ~5x at 1024). train.py and evaluate.py turn it on. Not
     # "compile": TorchRL's EnvBase metaclass takes that keyword for itself.
@@ -194,6 +199,7 @@ class EnvConfig:
             raise ValueError(
                 f"env.replicas = {self.replicas} is not allowed; it must divide env.num_envs = {self.num_envs}"
             )
+        self._check_replica_actions()
         check_choice("env.solver", self.solver, ENV_SOLVERS)
         self.channel_model()  # validates the channel's settings, once
         if self.solver == "centroid" and not self.channel.centroid_solver:
@@ -216,6 +222,33 @@ class EnvConfig:
             (first, count), *others = lengths.items()
             given = f"{first} has {count} entries and " + ", ".join(f"{key} {n}" for key, n in others)
             raise ValueError(f"{given}; given together they must have one entry per scenario point")
+
+    def _check_replica_actions(self) -> None:
+        if self.replica_actions is None:
+            return
+        _check_list("env.replica_actions", self.replica_actions)
+        if len(self.replica_actions) != self.replicas:
+            raise ValueError(f"env.replica_actions has {len(self.replica_actions)} entries for env.replicas = "
+                             f"{self.replicas}; give one per replica (or null)")  # fmt: skip
+        entries = []
+        for index, actions in enumerate(self.replica_actions):
+            key = f"env.replica_actions[{index}]"
+            actions = dict(actions) if isinstance(actions, Mapping | tuple) else actions
+            if not isinstance(actions, dict) or not set(actions) <= set(ACTION_KEYS):
+                raise ValueError(f"{key} = {actions!r} must map some of {', '.join(ACTION_KEYS)} to their values")
+            try:
+                self.replace(**actions, replica_actions=None)
+            except ValueError as error:
+                raise ValueError(f"{key}: {error}") from None
+            entries.append(tuple((name, actions[name]) for name in ACTION_KEYS if name in actions))  # hashable
+        object.__setattr__(self, "replica_actions", tuple(entries))
+
+    def replica_configs(self) -> list[EnvConfig]:
+        """The configuration each replica acts by (:data:`ACTION_KEYS` from ``replica_actions``), or this one alone
+        where every replica acts alike."""
+        if self.replica_actions is None:
+            return [self]
+        return [self.replace(**dict(actions), replica_actions=None) for actions in self.replica_actions]
 
     def _check_values(self, name: str, low: float, high: float, unit: str) -> None:
         key, values = f"{name}_values", getattr(self, f"{name}_values")
@@ -334,6 +367,20 @@ class EnvConfig:
     def observation_size(self) -> int:
         """Length of the observation vector: ``frames`` frames of :attr:`frame_size`, newest first."""
         return self.frame_size * self.frames
+
+    def columns_in(self, wide: EnvConfig) -> list[int]:
+        """The columns of ``wide``'s observation that make up this config's, frame by frame (newest first): where
+        ``wide`` observes every part of this layout and at least as many frames (evaluation's groups, in which a
+        policy reads its own observation out of one with more parts)."""
+        if not set(self.observation_layout) <= set(wide.observation_layout) or self.frames > wide.frames:
+            raise ValueError(f"the observation {list(wide.observation_layout)} × {wide.frames} frames lacks a part of "
+                             f"{list(self.observation_layout)} × {self.frames}")  # fmt: skip
+        return [
+            frame * wide.frame_size + column
+            for frame in range(self.frames)
+            for name in self.observation_layout
+            for column in range(wide.observation_layout[name].start, wide.observation_layout[name].stop)
+        ]
 
     @property
     def episode_seconds(self) -> float:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import torch
 
@@ -16,6 +17,26 @@ from waterair.envs.sensors import Sensor
 from waterair.physics.channel import Beacon, ChannelModel, Transceiver
 from waterair.physics.optics import traced
 from waterair.physics.paths import FixedNewtonOptions
+
+
+class Actions(NamedTuple):
+    """How an action turns into tilts (docs/environment.md, "Actions"): ``mode`` (``env.action_mode``), ``residual``
+    sin(``env.residual_deg``), ``base`` (``env.residual_base``) and ``beams`` (``env.residual_beams``)."""
+
+    mode: str
+    residual: float
+    base: str
+    beams: float | None
+
+    @classmethod
+    def of(cls, config: EnvConfig) -> Actions:
+        return cls(config.action_mode, math.sin(math.radians(config.residual_deg)), config.residual_base,
+                   config.residual_beams)  # fmt: skip
+
+    def traced(self, device: torch.device, dtype: torch.dtype) -> Actions:
+        """With the residual's range as one-element tensors (:meth:`StepConstants.traced`)."""
+        beams = None if self.beams is None else traced(self.beams, device, dtype)
+        return self._replace(residual=traced(self.residual, device, dtype), beams=beams)
 
 
 @dataclass(frozen=True)
@@ -43,10 +64,21 @@ class StepConstants:
     pointing once per link of them."""
     beacon: Beacon | None = None
     """The drone's beacon where the step reads it (``EnvConfig.senses_beacon``); None: its reading stays 0."""
+    replica_actions: tuple[Actions, ...] = ()
+    """Where the replicas act differently (``env.replica_actions``): the distinct ways, and ``replica_choice``, which
+    of them each replica takes; empty: every replica acts as the fields above say."""
+    replica_choice: tuple[int, ...] = ()
+
+    @property
+    def actions(self) -> Actions:
+        """How the batch acts where every replica acts alike."""
+        return Actions(self.action_mode, self.residual, self.residual_base, self.residual_beams)
 
     @classmethod
     def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward, channel: ChannelModel) -> StepConstants:
         solver = FixedNewtonOptions(iterations=config.newton_iterations)
+        each = [Actions.of(c) for c in config.replica_configs()]
+        distinct = list(dict.fromkeys(each)) if len(set(each)) > 1 else []
         return cls(
             optics=channel.optics,
             sensor=sensor,
@@ -66,6 +98,8 @@ class StepConstants:
             channel=channel,
             replicas=config.replicas,
             beacon=config.beacon if config.senses_beacon else None,
+            replica_actions=tuple(distinct),
+            replica_choice=tuple(distinct.index(a) for a in each) if distinct else (),
         )
 
     def for_links(self, divergence: torch.Tensor) -> StepConstants:
@@ -88,4 +122,5 @@ class StepConstants:
             sensor=self.sensor.traced(device, dtype),
             residual=traced(self.residual, device, dtype),  # type: ignore[arg-type]  # a tensor only in the compiled step's copy
             residual_beams=None if self.residual_beams is None else traced(self.residual_beams, device, dtype),  # type: ignore[arg-type]
+            replica_actions=tuple(actions.traced(device, dtype) for actions in self.replica_actions),
         )

@@ -232,7 +232,8 @@ class WaterAirEnv(EnvBase):
             reach: float | torch.Tensor = self.constants.residual
             if self.constants.residual_beams is not None:
                 divergence = self.state.divergence if divergence is None else divergence
-                reach = kernel.residual_reach(self.constants, divergence.to(self.float_dtype)).repeat_interleave(2, -1)
+                reach = kernel.residual_reach(self.constants.actions, divergence.to(self.float_dtype))
+                reach = reach.repeat_interleave(2, -1)
             return ((target - base) / reach).clamp(-1.0, 1.0)
         if current is None:
             current = self.tilt

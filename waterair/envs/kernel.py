@@ -23,7 +23,7 @@ from typing import NamedTuple
 import torch
 
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
-from waterair.envs.constants import StepConstants
+from waterair.envs.constants import Actions, StepConstants
 from waterair.envs.sensors import (
     back_projection,
     beacon_pointing,
@@ -56,15 +56,15 @@ class Record(NamedTuple):
 
 def advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
     """Gimbals, action history and clock after ``action`` ``[B, 4]`` (already clipped to [-1, 1])."""
-    if c.action_mode == "absolute":
-        tx, rx = action[:, :2] * c.max_tilt, action[:, 2:] * c.max_tilt
-    elif c.action_mode == "residual":
-        # the correction applies from the first reading taken with the controller's own pointing
-        base, tracking = base_tilts(c, state), ~read_parked(state.steps, c.sensor.latency_steps)
-        reach = residual_reach(c, state.divergence.to(action.dtype)) * tracking.to(action.dtype).unsqueeze(-1)
-        tx, rx = base[:, :2] + action[:, :2] * reach[:, :1], base[:, 2:] + action[:, 2:] * reach[:, 1:]
+    if c.replica_actions:  # replica k's rows [k·n, (k+1)·n) act its own way: each way on every row, then chosen
+        ways = [aimed_tilts(c, actions, state, action) for actions in c.replica_actions]
+        replica = torch.arange(action.shape[0], device=action.device) // (action.shape[0] // c.replicas)
+        way = torch.tensor(c.replica_choice, device=action.device)[replica].unsqueeze(-1)
+        tx, rx = ways[0]
+        for index, (tx_k, rx_k) in enumerate(ways[1:], start=1):
+            tx, rx = torch.where(way == index, tx_k, tx), torch.where(way == index, rx_k, rx)
     else:
-        tx, rx = state.tx_tilt + action[:, :2] * c.slew_step, state.rx_tilt + action[:, 2:] * c.slew_step
+        tx, rx = aimed_tilts(c, c.actions, state, action)
     return Moved(
         tx_tilt=limit_tilt(tx, c.max_tilt),
         rx_tilt=limit_tilt(rx, c.max_tilt),
@@ -74,12 +74,25 @@ def advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
     )
 
 
-def residual_reach(c: StepConstants, divergence: torch.Tensor) -> torch.Tensor:
+def aimed_tilts(c: StepConstants, actions: Actions, state: StepState, action: torch.Tensor):
+    """The tilts ``[B, 2]`` each of the transmitter and the receiver that ``action`` asks for, acting as
+    ``actions`` says, before the tilt limit."""
+    if actions.mode == "absolute":
+        return action[:, :2] * c.max_tilt, action[:, 2:] * c.max_tilt
+    if actions.mode == "residual":
+        # the correction applies from the first reading taken with the controller's own pointing
+        base, tracking = base_tilts(c, state, actions.base), ~read_parked(state.steps, c.sensor.latency_steps)
+        reach = residual_reach(actions, state.divergence.to(action.dtype)) * tracking.to(action.dtype).unsqueeze(-1)
+        return base[:, :2] + action[:, :2] * reach[:, :1], base[:, 2:] + action[:, 2:] * reach[:, 1:]
+    return state.tx_tilt + action[:, :2] * c.slew_step, state.rx_tilt + action[:, 2:] * c.slew_step
+
+
+def residual_reach(actions: Actions, divergence: torch.Tensor) -> torch.Tensor:
     """The largest residual correction ``[n, 2]`` (a tilt's sine) of each link's transmitter and receiver, for
     its ω_D ``[n]``: sin(residual_deg), the transmitter's at most residual_beams · ω_D where that is set, so that
     a narrow beam's correction stays within a few of its widths (docs/environment.md, "Residual actions")."""
-    reach = torch.full_like(divergence, 1.0) * c.residual
-    tx = reach if c.residual_beams is None else torch.minimum(c.residual_beams * divergence, reach)
+    reach = torch.full_like(divergence, 1.0) * actions.residual
+    tx = reach if actions.beams is None else torch.minimum(actions.beams * divergence, reach)
     return torch.stack((tx, reach), dim=-1)
 
 
@@ -88,16 +101,17 @@ def flat_tilts(point: torch.Tensor, tx: torch.Tensor, rx: torch.Tensor) -> torch
     return torch.cat((unit_vector(point - tx)[:, :2], unit_vector(point - rx)[:, :2]), dim=-1)
 
 
-def base_tilts(c: StepConstants, state: StepState) -> torch.Tensor:
-    """The residual base controller's tilts ``[B, 4]`` for the next action: flat-sea Snell, or the
-    quadrant-detector back-projection of the delivered packet (flat-sea Snell where it has no reading, or
-    only the one read with the gimbals parked at the reset)."""
+def base_tilts(c: StepConstants, state: StepState, base: str | None = None) -> torch.Tensor:
+    """The residual base controller's tilts ``[B, 4]`` for the next action (``base``, default ``env.residual_base``):
+    flat-sea Snell, or the quadrant-detector back-projection of the delivered packet (flat-sea Snell where it has
+    no reading, or only the one read with the gimbals parked at the reset)."""
+    base = base or c.residual_base
     point, tx, rx = state.flat_point, state.tx_position, state.rx_position
-    if c.residual_base == "flat_snell":
+    if base == "flat_snell":
         return flat_tilts(point, tx, rx)
     delivered = deliver(state.packets).readings
     flat = unit_vector(point - tx), unit_vector(point - rx)
-    if c.residual_base == "beacon_tracker":
+    if base == "beacon_tracker":
         assert c.beacon is not None  # EnvConfig.senses_beacon: a beacon base reads the beacon
         tx_dir, rx_dir = beacon_pointing(
             (pointing(state.tx_tilt, up=True), delivered.beacon, delivered.beacon_valid[:, 0] > 0.5),
