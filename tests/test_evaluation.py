@@ -25,6 +25,7 @@ from waterair.evaluation.policies import (
     trained_on,
 )
 from waterair.evaluation.report import ROW_KEYS, write_outputs
+from waterair.evaluation.rollouts import rollout_policies
 from waterair.evaluation.runner import compare_policies, evaluate, prepare
 from waterair.physics.sea import ElfouhailySea, JonswapSea
 from waterair.training import train
@@ -362,9 +363,9 @@ def test_one_batch_for_all_policies_gives_the_same_numbers_as_one_rollout_each(t
         evaluate(eval_cfg(f"checkpoint={policy}", f"batch_policies={together}", *skip), progress=lines[together].append)
         for together in (True, False)
     ]
-    # one progress line per rollout, each with its own duration: S1 and S2 × (the baselines and
-    # controllers together, the policy with its own observation), or S1 and S2 × 8 policies one at a time
-    assert len(lines[True]) == 2 * 2 and len(lines[False]) == 2 * 8
+    # one progress line per rollout, each with its own duration: S1 and S2 × one batch (the baselines, the
+    # controllers and the policy, which reads its own columns of their observation), or × 8 policies one at a time
+    assert len(lines[True]) == 2 * 1 and len(lines[False]) == 2 * 8
     assert all(re.search(r": .+ in \d+ s \(eager\)$", line) for line in lines[True] + lines[False]), lines
     assert len(results[0].rows) == len(results[1].rows) == (1 + 2) * 9
     for batched, alone in zip(results[0].rows, results[1].rows, strict=True):
@@ -482,10 +483,10 @@ def test_latest_run_is_the_newest_checkpoint(tmp_path):
 
 BEACON_KEYS = ("beacon", "beacon_noise_rad", "beacon_threshold")
 """The env keys of the drone's beacon (docs/model.md §4.9)."""
-LATER_KEYS = (*BEACON_KEYS, "divergence_range", "divergence_values", "residual_beams")
+LATER_KEYS = (*BEACON_KEYS, "divergence_range", "divergence_values", "residual_beams", "replica_actions")
 """The env keys that came after ``intensity`` and ``paper`` were trained: the beacon's (their sensors read none),
-each link's own divergence (they were trained at one, ``optics.divergence``) and the transmitter's residual in
-beam widths (after ``default`` too; null, its default, is the residual they were trained with)."""
+each link's own divergence (they were trained at one, ``optics.divergence``), the transmitter's residual in
+beam widths and how each replica acts (after ``default`` too; null, their defaults, is how they were trained)."""
 
 
 @pytest.mark.parametrize("name", list(SHIPPED))
@@ -533,3 +534,26 @@ def test_the_physics_figures_draw_the_sea_evaluated_on_each_sea(sea, names, tmp_
     written = physics_figures(tmp_path, sea)
     assert [path.stem for path in written] == names
     assert all(path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for path in written)
+
+
+def test_learned_policies_that_observe_and_act_otherwise_join_the_groups_of_their_step_and_do_as_alone():
+    """The shipped policies: ``paper`` observes fewer parts than the baselines, ``default`` and ``intensity`` act as
+    residuals (on the beacon tracker, on flat-sea Snell) and observe two frames of their own parts. Each joins
+    the group whose step is its own (``paper`` the ideal sensor's, the others their realistic one's) and reads,
+    acts and scores there as in a rollout of its own: the same gains to float32 rounding (the group also reads
+    the beacon, which a lattice's sums share with the uplink)."""
+    plan = prepare(eval_cfg())
+    groups = {tuple(label for label, _ in members): config for config, members in plan.groups}
+    assert [labels[-1] for labels in groups] == ["ddpg paper", "ppo intensity"] and len(groups) == 2
+    late = next(config for labels, config in groups.items() if "ppo default" in labels)
+    assert late.frames == 2 and late.latency_steps == 1 and late.replica_actions is not None
+    assert [dict(a).get("action_mode") for a in late.replica_actions] == [None, None, None, "residual", "residual"]
+    points = [(12.0, 0.1, 0.0), (20.0, 0.3, 45.0)]
+    together = {}
+    for config, members in plan.groups:
+        together.update(rollout_policies(config, members, points, 2, 10, 7))
+    for policy, config, actor in plan.learned:
+        alone = rollout_policies(config, [(policy.label, actor)], points, 2, 10, 7)[policy.label]
+        for key in ("gain", "intensity"):
+            torch.testing.assert_close(together[policy.label][key], alone[key], rtol=1e-5, atol=1e-9)
+    assert not torch.allclose(together["ppo default"]["gain"], together["ppo intensity"]["gain"])

@@ -38,6 +38,24 @@ class PolicySplit(TensorDictModuleBase):
         return tensordict
 
 
+class JoinedPolicy(TensorDictModuleBase):
+    """A learned ``policy`` acting in a group of policies whose step is its own but whose observation has more
+    parts or frames and whose replicas may act otherwise: it reads its own ``columns`` of the observation
+    (:meth:`EnvConfig.columns_in`) and its replica acts as ``actions`` says (``env.replica_actions``), which is what
+    its own environment would have given and done."""
+
+    def __init__(self, policy: TensorDictModuleBase, columns: Sequence[int], actions: dict):
+        super().__init__()
+        self.policy, self.actions = policy, actions
+        self.in_keys, self.out_keys = list(policy.in_keys), list(policy.out_keys)
+        self.register_buffer("columns", torch.tensor(list(columns), dtype=torch.long))
+
+    def forward(self, tensordict):
+        view = tensordict.copy()  # the caller's observation stays whole
+        view.set("observation", view.get("observation").index_select(-1, self.columns.to(view.device)))
+        return self.policy(view)
+
+
 def rollout_policies(env_config: EnvConfig, members, points, realisations: int, steps: int, seed: int) -> dict:
     """Traces ``[R, P, T]`` (CPU) per member ``(label, policy or baseline name)``, all on the same seas.
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,11 +24,11 @@ from waterair.core.compiling import CHOICES as COMPILE_CHOICES
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.config import EnvConfig
-from waterair.envs.controllers import CONTROLLERS
 from waterair.envs.link import link_budget
 from waterair.envs.stepper import varying_environments
 from waterair.evaluation.compiling import compiled_group, note_compiled
 from waterair.evaluation.divergence import at_divergence, outage_against_power, scenario_link
+from waterair.evaluation.groups import actor_of, policy_groups, side_by_side
 from waterair.evaluation.metrics import phase_metrics, scenario_metrics
 from waterair.evaluation.per_divergence import labelled, name_policies, serving, trained_divergence
 from waterair.evaluation.policies import (
@@ -187,7 +187,7 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
                     f"{env_config.max_steps}] ({owner} env.max_steps: a longer rollout would restart the seas)"
                 )
     together = bool(cfg.get("batch_policies", True))
-    groups = _policy_groups(base, baselines, learned, together)
+    groups = policy_groups(base, baselines, learned, together)
     if compile_kernel == "auto":  # each group compiles when its own frames repay its graphs (evaluation/compiling.py)
         per_policy = sum(len(s.points) * s.realisations * s.steps * max(1, len(s.divergences)) for s in scenarios)
         groups = [(compiled_group(config, len(members) * per_policy)[0], members) for config, members in groups]
@@ -257,9 +257,9 @@ def _acting(plan: EvaluationPlan, divergence: float) -> list[tuple]:
     actors = {id(actor) for policy, _, actor in plan.learned if id(policy) in acting}
     groups = []
     for env_config, group in plan.groups:
-        kept = [(label, member) for label, member in group if isinstance(member, str) or id(member) in actors]
+        kept = [(label, member) for label, member in group if isinstance(member, str) or id(actor_of(member)) in actors]
         if kept:
-            groups.append((env_config, kept))
+            groups.append((side_by_side(env_config, kept), kept))
     return groups
 
 
@@ -268,55 +268,6 @@ def _batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
     for s in scenarios:
         batches.setdefault((s.realisations, s.steps, s.seed, s.divergences), []).append(s)
     return list(batches.values())
-
-
-def _policy_groups(base: EnvConfig, baselines: list[str], learned, together: bool = True) -> list[tuple]:
-    """(env config, [(label, policy or baseline name)]) per distinct interface.
-
-    Baselines and controllers use the scenario's environment with every observation part they read
-    (``required_extras``). Where a learned policy senses differently from the scenario (its own
-    training sensor), the classical controllers also run with that sensing, labelled with it, so
-    that each policy has its classical competitor with the same sensing. ``together=False`` gives
-    every policy its own group (own rollout): slower, less memory.
-    """
-    reference = reading(base, baselines)
-    references = [(reference, [(name, name) for name in baselines])] if baselines else []
-    controllers = [name for name in baselines if name in CONTROLLERS]
-    labels: list[str] = []
-    for sensing in dict.fromkeys(tuple(c.sensing.items()) for _, c, _ in learned):
-        if controllers and dict(sensing) != reference.sensing:
-            label = sensing_label(dict(sensing))
-            labels.append(label)
-            if labels.count(label) > 1:  # two sensor settings that read alike
-                label = f"{label} #{labels.count(label)}"
-            members = [(f"{name} ({label})", name) for name in controllers]
-            references.append((reference.replace(**dict(sensing)), members))
-    if not together:
-        single = [(config, [member]) for config, members in references for member in members]
-        return single + [(c, [(p.label, a)]) for p, c, a in learned]
-    groups: list[tuple[EnvConfig, list]] = list(references)
-    for policy, env_config, actor in learned:
-        match = next((members for config, members in groups if config == env_config), None)
-        if match is None:
-            groups.append((env_config, match := []))
-        match.append((policy.label, actor))
-    return groups
-
-
-def reading(config: EnvConfig, names: Iterable[str]) -> EnvConfig:
-    """``config`` with the observation parts the baselines and controllers ``names`` read (``required_extras``)
-    after its own: the interface they run in."""
-    required = (part for name in names for part in REFERENCES[name].required_extras)
-    return config.replace(observation_extras=tuple(dict.fromkeys((*config.observation_extras, *required))))
-
-
-def sensing_label(sensing: Mapping) -> str:
-    """A short name of a sensor setting (``EnvConfig.sensing``), e.g. ``1-step latency, noisy``."""
-    parts = [f"{sensing['latency_steps']}-step latency"] if sensing["latency_steps"] else []
-    noisy = sensing["intensity_noise"] or sensing["intensity_noise_floor"] or sensing["spot_noise_rad"]
-    parts += ["noisy"] if noisy else []
-    parts += ["saturating"] if sensing["intensity_saturation"] is not None else []
-    return ", ".join(parts) or "ideal"
 
 
 def _collect(

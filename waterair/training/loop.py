@@ -23,8 +23,9 @@ from waterair.core.threads import AUTO as AUTO_THREADS
 from waterair.core.threads import choose_threads, torch_threads
 from waterair.envs.controllers import controller_for
 from waterair.evaluation.compiling import compiled_group
+from waterair.evaluation.groups import reading
 from waterair.evaluation.metrics import FADE_FRACTION, METRICS
-from waterair.evaluation.runner import compare_policies, reading
+from waterair.evaluation.runner import compare_policies
 from waterair.evaluation.scenarios import Scenario
 from waterair.physics.link import LinkBudget, link_performance
 from waterair.training.algorithms import create
