@@ -20,7 +20,7 @@ from waterair.physics.paths import FixedNewtonOptions
 
 
 class Actions(NamedTuple):
-    """How an action turns into tilts (docs/environment.md, "Actions"): ``mode`` (``env.action_mode``), ``residual``
+    """How an action turns into tilts (docs/environment.md, "Interface"): ``mode`` (``env.action_mode``), ``residual``
     sin(``env.residual_deg``), ``base`` (``env.residual_base``) and ``beams`` (``env.residual_beams``)."""
 
     mode: str
@@ -77,7 +77,7 @@ class StepConstants:
     @classmethod
     def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward, channel: ChannelModel) -> StepConstants:
         solver = FixedNewtonOptions(iterations=config.newton_iterations)
-        each = [Actions.of(c) for c in config.replica_configs()]
+        own, each = Actions.of(config), [Actions.of(c) for c in config.replica_configs()]
         distinct = list(dict.fromkeys(each)) if len(set(each)) > 1 else []
         return cls(
             optics=channel.optics,
@@ -85,11 +85,11 @@ class StepConstants:
             reward=reward,
             solver=solver,
             tolerance=solver.tolerance(getattr(torch, config.dtype)),
-            action_mode=config.action_mode,
+            action_mode=own.mode,
             max_tilt=config.max_tilt,
-            residual=math.sin(math.radians(config.residual_deg)),
-            residual_base=config.residual_base,
-            residual_beams=config.residual_beams,
+            residual=own.residual,
+            residual_base=own.base,
+            residual_beams=own.beams,
             slew_step=math.sin(math.radians(config.max_slew_deg_s * config.dt)),
             dt=config.dt,
             episode_seconds=config.episode_seconds,

@@ -4,8 +4,8 @@
 metrics and the gain traces) that :mod:`waterair.evaluation.report` writes out. Each rollout seeds
 its environment with the scenario's seed, a scenario's points run as one batch of
 ``points × realisations`` links (``env.wind_values`` / ``env.offset_values``), and the policies
-that share an environment interface run side by side as replicas of one environment with
-identical seas. :func:`compare_policies` is the same measurement for one point, as training's
+whose step is the same run side by side as replicas of one environment with identical seas
+(:mod:`waterair.evaluation.groups`). :func:`compare_policies` is the same measurement for one point, as training's
 closing evaluation uses it.
 """
 
