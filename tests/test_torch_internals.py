@@ -151,7 +151,8 @@ def test_every_setting_the_compiled_step_reads_is_a_one_element_tensor_in_its_dt
     """What the test above requires, for each number the compiled step's constants carry as a tensor."""
     env = WaterAirEnv(num_envs=2, seed=0, dtype=dtype, intensity_noise=0.1, **paper_physics(n_freq=8, n_dir=4))
     constants = env.constants.traced(torch.device("cpu"), env.float_dtype)
-    settings = {name: getattr(constants.sensor, name) for name in TRACED_SETTINGS} | {"residual": constants.residual}
+    settings = {name: getattr(constants.sensor, name) for name in TRACED_SETTINGS}
+    settings["residual"] = constants.actions.residual
     assert {name: (value.shape, value.dtype) for name, value in settings.items()} == {
         name: ((1,), env.float_dtype) for name in settings
     }

@@ -34,9 +34,10 @@ class Actions(NamedTuple):
                    config.residual_beams)  # fmt: skip
 
     def traced(self, device: torch.device, dtype: torch.dtype) -> Actions:
-        """With the residual's range as one-element tensors (:meth:`StepConstants.traced`)."""
+        """With the residual's range as one-element tensors (:meth:`StepConstants.traced`; tensors only in the
+        compiled step's copy)."""
         beams = None if self.beams is None else traced(self.beams, device, dtype)
-        return self._replace(residual=traced(self.residual, device, dtype), beams=beams)
+        return self._replace(residual=traced(self.residual, device, dtype), beams=beams)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -48,11 +49,9 @@ class StepConstants:
     reward: Reward
     solver: FixedNewtonOptions
     tolerance: float
-    action_mode: str
+    actions: Actions
+    """How the batch acts (where every replica acts alike)."""
     max_tilt: float
-    residual: float
-    residual_base: str
-    residual_beams: float | None
     slew_step: float
     dt: float
     episode_seconds: float
@@ -66,18 +65,13 @@ class StepConstants:
     """The drone's beacon where the step reads it (``EnvConfig.senses_beacon``); None: its reading stays 0."""
     replica_actions: tuple[Actions, ...] = ()
     """Where the replicas act differently (``env.replica_actions``): the distinct ways, and ``replica_choice``, which
-    of them each replica takes; empty: every replica acts as the fields above say."""
+    of them each replica takes; empty: every replica acts as ``actions`` says."""
     replica_choice: tuple[int, ...] = ()
-
-    @property
-    def actions(self) -> Actions:
-        """How the batch acts where every replica acts alike."""
-        return Actions(self.action_mode, self.residual, self.residual_base, self.residual_beams)
 
     @classmethod
     def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward, channel: ChannelModel) -> StepConstants:
         solver = FixedNewtonOptions(iterations=config.newton_iterations)
-        own, each = Actions.of(config), [Actions.of(c) for c in config.replica_configs()]
+        each = [Actions.of(c) for c in config.replica_configs()]
         distinct = list(dict.fromkeys(each)) if len(set(each)) > 1 else []
         return cls(
             optics=channel.optics,
@@ -85,11 +79,8 @@ class StepConstants:
             reward=reward,
             solver=solver,
             tolerance=solver.tolerance(getattr(torch, config.dtype)),
-            action_mode=own.mode,
+            actions=Actions.of(config),
             max_tilt=config.max_tilt,
-            residual=own.residual,
-            residual_base=own.base,
-            residual_beams=own.beams,
             slew_step=math.sin(math.radians(config.max_slew_deg_s * config.dt)),
             dt=config.dt,
             episode_seconds=config.episode_seconds,
@@ -120,7 +111,6 @@ class StepConstants:
         return replace(
             self,
             sensor=self.sensor.traced(device, dtype),
-            residual=traced(self.residual, device, dtype),  # type: ignore[arg-type]  # a tensor only in the compiled step's copy
-            residual_beams=None if self.residual_beams is None else traced(self.residual_beams, device, dtype),  # type: ignore[arg-type]
+            actions=self.actions.traced(device, dtype),
             replica_actions=tuple(actions.traced(device, dtype) for actions in self.replica_actions),
         )

@@ -229,8 +229,8 @@ class WaterAirEnv(EnvBase):
             return (target / self.config.max_tilt).clamp(-1.0, 1.0)
         if self.config.action_mode == "residual":
             base = self._base_tilt if base is None else base.to(self.float_dtype)
-            reach: float | torch.Tensor = self.constants.residual
-            if self.constants.residual_beams is not None:
+            reach: float | torch.Tensor = self.constants.actions.residual
+            if self.constants.actions.beams is not None:
                 divergence = self.state.divergence if divergence is None else divergence
                 reach = kernel.residual_reach(self.constants.actions, divergence.to(self.float_dtype))
                 reach = reach.repeat_interleave(2, -1)

@@ -105,7 +105,7 @@ def base_tilts(c: StepConstants, state: StepState, base: str | None = None) -> t
     """The residual base controller's tilts ``[B, 4]`` for the next action (``base``, default ``env.residual_base``):
     flat-sea Snell, or the quadrant-detector back-projection of the delivered packet (flat-sea Snell where it has
     no reading, or only the one read with the gimbals parked at the reset)."""
-    base = base or c.residual_base
+    base = base or c.actions.base
     point, tx, rx = state.flat_point, state.tx_position, state.rx_position
     if base == "flat_snell":
         return flat_tilts(point, tx, rx)
@@ -333,7 +333,7 @@ def observation_columns(config: EnvConfig) -> list[int] | None:
 
     :func:`observe` gives the layout of every part (:data:`OBSERVATION_EXTRAS` all on).
     """
-    full = config.replace(observation_extras=OBSERVATION_EXTRAS).observation_layout
-    if len(config.observation_layout) == len(full):
+    full = config.replace(observation_extras=OBSERVATION_EXTRAS, frames=1)
+    if len(config.observation_layout) == len(full.observation_layout):
         return None
-    return [column for name in config.observation_layout for column in range(full[name].start, full[name].stop)]
+    return config.replace(frames=1).columns_in(full)

@@ -57,8 +57,8 @@ def policy_groups(base: EnvConfig, baselines: list[str], learned, together: bool
     return [(side_by_side(config, members), members) for config, members in built]
 
 
-SHARED_STEP = {"observation_extras": OBSERVATION_EXTRAS, "frames": 1, "action_mode": "absolute", "residual_deg": 15.0,
-               "residual_beams": None, "residual_base": "flat_snell"}  # fmt: skip
+SHARED_STEP = {"observation_extras": OBSERVATION_EXTRAS, "frames": 1}
+SHARED_STEP |= {key: getattr(EnvConfig(), key) for key in ACTION_KEYS}  # how the defaults act
 """Interface keys in which policies may differ and still run side by side in one group, each with a value any
 configuration may take: the observation's parts and frames, chosen outside the step's graph
 (:func:`waterair.envs.kernel.observation_columns`, :mod:`waterair.envs.frames`), and how actions turn into tilts,
