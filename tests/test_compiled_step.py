@@ -305,20 +305,34 @@ def test_a_groups_graph_in_an_evaluation_does_not_depend_on_the_groups_before_it
     assert "packets" in alone and alone == after
 
 
-MIXED = ({}, {"action_mode": "residual", "residual_deg": 1.0}, {"action_mode": "delta"})
-"""Three replicas acting three ways: absolute tilts, a residual on the quadrant tracker, slew steps."""
+REALISTIC = {"latency_steps": 1, "intensity_noise": 0.05, "intensity_noise_floor": 1e-3, "intensity_saturation": 4.0,
+             "spot_noise_rad": 1e-3, "spot_threshold": 0.01, "beacon_noise_rad": 1e-3,
+             "beacon_threshold": 0.01}  # fmt: skip
+MIXED = {
+    "replica_actions": ({}, {"action_mode": "residual", "residual_deg": 1.0}, {"action_mode": "delta"}),
+    "replica_sensing": ({}, REALISTIC, {"latency_steps": 2, "intensity_saturation": 0.3, "spot_threshold": 0.2}),
+}
+"""Three replicas acting three ways (absolute tilts, a residual on the quadrant tracker, slew steps), or sensing
+three ways (ideal, realistic, two steps late with a detector that saturates and sees little), each as residuals
+on the quadrant tracker, which reads the latency too."""
 
 
 @pytest.mark.parametrize("compiled", [False, True])
-def test_replicas_that_act_their_own_ways_each_step_as_an_environment_of_that_way(compiled, eager_path_kernels):
-    """``env.replica_actions`` (evaluation's groups of policies that act differently): replica k of a batch steps as
-    replica k of a batch in which every replica acts its way, on the same seas and actions; compiled (traced by
-    dynamo, run eagerly: the graph's logic, not inductor's code) as eager. The paper's single path, float64."""
-    base = preset_config("quadrant", "realistic", 6, **FIXED_LINK, **PAPER)
+@pytest.mark.parametrize("key", list(MIXED))
+def test_replicas_that_act_or_sense_their_own_ways_each_step_as_an_environment_of_that_way(
+    key, compiled, eager_path_kernels
+):
+    """``env.replica_actions``, ``env.replica_sensing`` (evaluation's groups of policies that act or sense
+    differently): replica k of a batch steps as replica k of a batch in which every replica acts or senses its way,
+    on the same seas, actions and sensor noise; compiled (traced by dynamo, run eagerly: the graph's logic, not
+    inductor's code) as eager. The paper's single path, float64."""
+    base = preset_config("quadrant", "ideal", 6, **FIXED_LINK, **PAPER)
     base = base.replace(replicas=3, residual_base="aoa_tracker", dtype="float64")
+    if key == "replica_sensing":
+        base = base.replace(action_mode="residual", residual_deg=1.0)
     actions = torch.linspace(-1.0, 1.0, 4 * 6 * 4, dtype=torch.float64).reshape(4, 6, 4).sin()
-    alike = [rollout(WaterAirEnv(base.replace(**way)), actions) for way in MIXED]
-    mixed = base.replace(replica_actions=MIXED, compile_kernel=compiled)
+    alike = [rollout(WaterAirEnv(base.replace(**way)), actions) for way in MIXED[key]]
+    mixed = base.replace(**{key: MIXED[key]}, compile_kernel=compiled)
     if compiled:
         torch._dynamo.reset()
         with stepper.varying_environments():
@@ -330,13 +344,14 @@ def test_replicas_that_act_their_own_ways_each_step_as_an_environment_of_that_wa
         got = rollout(WaterAirEnv(mixed), actions)
     for k, expected in enumerate(alike):
         rows = slice(2 * k, 2 * k + 2)
-        for key in COMPARED:
-            torch.testing.assert_close(got[key][:, rows], expected[key][:, rows], rtol=1e-12, atol=1e-15, msg=key)
-    # the ways differ: the same action points each replica elsewhere
-    assert not torch.allclose(got["gain"][:, 0:2], got["gain"][:, 2:4])
+        for name in COMPARED:
+            torch.testing.assert_close(got[name][:, rows], expected[name][:, rows], rtol=1e-12, atol=1e-15, msg=name)
+    # the ways differ: the same action points each replica elsewhere, or each reads another observation
+    differs = "gain" if key == "replica_actions" else "observation"
+    assert not torch.allclose(got[differs][:, 0:2], got[differs][:, 2:4])
 
 
-def test_replica_actions_are_checked_naming_the_entry():
+def test_replica_actions_and_sensing_are_checked_naming_the_entry():
     base = preset_config("quadrant", "ideal", 4).replace(replicas=2)
     with pytest.raises(ValueError, match=r"^env.replica_actions has 1 entries for env.replicas = 2"):
         base.replace(replica_actions=[{}])
@@ -345,3 +360,9 @@ def test_replica_actions_are_checked_naming_the_entry():
     with pytest.raises(ValueError, match=r"^env.replica_actions\[0\]: env.residual_deg = 95"):
         base.replace(replica_actions=[{"residual_deg": 95.0}, {}])
     assert base.replace(replica_actions=[{}, {"action_mode": "delta"}]).replica_configs()[1].action_mode == "delta"
+    with pytest.raises(ValueError, match=r"^env.replica_sensing\[1\] = \{'residual_deg': 2.0\} must map some of lat"):
+        base.replace(replica_sensing=[{}, {"residual_deg": 2.0}])
+    with pytest.raises(ValueError, match=r"^env.replica_sensing\[0\]: env.intensity_noise = -1"):
+        base.replace(replica_sensing=[{"intensity_noise": -1.0}, {}])
+    both = base.replace(replica_actions=[{"action_mode": "delta"}, {}], replica_sensing=[{}, {"latency_steps": 2}])
+    assert [(c.action_mode, c.latency_steps) for c in both.replica_configs()] == [("delta", 0), (base.action_mode, 2)]

@@ -92,17 +92,21 @@ def test_an_evaluation_decides_for_each_group_and_notes_the_groups_it_compiled(t
 
     monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
     (tmp_path / "fxgraph" / "a2mk64").mkdir(parents=True)
-    # two baselines and the paper's policy (its step is theirs) in one group (48,288 frames), the other shipped
-    # policies, which sense alike, in another (32,192)
+    # two baselines and the three shipped policies (their steps are the baselines' but for how they observe, act and
+    # sense) in one group, 5 × 16,096 frames
     overrides = ("env.compile_kernel=auto", "baselines=[flat_snell,straight_facing]", "scenarios.S1.realisations=32",
                  "scenarios.S1.steps=500")  # fmt: skip
     plan = prepare(eval_cfg(*overrides))
-    assert [len(members) for _, members in plan.groups] == [3, 2]
-    assert [config.compile_kernel for config, _ in plan.groups] == [False] * 2  # no group's graphs kept
+    assert [len(members) for _, members in plan.groups] == [5]
+    assert [config.compile_kernel for config, _ in plan.groups] == [False]  # its graphs not kept
     note_compiled(plan.groups[0][0].replace(compile_kernel=True))
-    note_compiled(plan.groups[1][0].replace(compile_kernel=True))
-    kept = [config.compile_kernel for config, _ in prepare(eval_cfg(*overrides)).groups]
-    assert kept == [True, False]  # the policies' group is kept but its 32,192 frames do not repay it
+    assert [config.compile_kernel for config, _ in prepare(eval_cfg(*overrides)).groups] == [True]
+    # a policy alone: its own group, whose 16,096 frames do not repay even graphs kept
+    alone = prepare(eval_cfg(*overrides, "batch_policies=false")).groups
+    assert len(alone) == 5 and not any(config.compile_kernel for config, _ in alone)
+    for config, _ in alone:
+        note_compiled(config.replace(compile_kernel=True))
+    assert not any(config.compile_kernel for config, _ in prepare(eval_cfg(*overrides, "batch_policies=false")).groups)
 
 
 def test_a_cache_folder_that_cannot_be_written_costs_a_compile_not_the_evaluation(tmp_path, monkeypatch):

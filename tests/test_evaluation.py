@@ -124,18 +124,30 @@ def write_policy(
     return path
 
 
+def latencies(groups) -> dict[str, int]:
+    """Each member's latency: its replica's (``env.replica_sensing``)."""
+    out = {}
+    for config, members in groups:
+        configs = config.replica_configs()
+        out |= {label: configs[k % len(configs)].latency_steps for k, (label, _) in enumerate(members)}
+    return out
+
+
 def test_sensing_decides_whose_sensor_a_learned_policy_and_its_controllers_use(tiny_run):
     trained = prepare(eval_cfg(f"run={tiny_run}"))
     ((_, config, _),) = trained.learned
     assert config.latency_steps == 1 and config.intensity_noise == 0.05 and trained.env.latency_steps == 0
-    sensed = [(c.latency_steps, [label for label, _ in members]) for c, members in trained.groups]
     late = [
         f"{name} (1-step latency, noisy, saturating)" for name in ("beacon_tracker", "aoa_tracker", "intensity_dither")
     ]
-    assert (1, late) in sensed and (1, [trained.policies[0].label]) in sensed
+    # the controllers with the policy's sensing are replicas of the baselines' group that sense their own way
+    (config, members), (_, [(label, _)]) = trained.groups
+    assert [name for name, _ in members][-3:] == late and label == trained.policies[0].label
+    assert latencies(trained.groups) == {name: int(name in late or name == label) for name in latencies(trained.groups)}
+    assert config.latency_steps == 0 and config.replica_configs()[-1].intensity_saturation == 4.0
     scenario = prepare(eval_cfg(f"run={tiny_run}", "sensing=scenario"))
     assert scenario.learned[0][1].latency_steps == 0
-    assert all(c.latency_steps == 0 for c, _ in scenario.groups) and len(scenario.groups) == 2
+    assert set(latencies(scenario.groups).values()) == {0} and len(scenario.groups) == 2
     with pytest.raises(ValueError, match=r"^sensing = 'mine' is not allowed"):
         prepare(eval_cfg(f"run={tiny_run}", "sensing=mine"))
 
@@ -483,10 +495,12 @@ def test_latest_run_is_the_newest_checkpoint(tmp_path):
 
 BEACON_KEYS = ("beacon", "beacon_noise_rad", "beacon_threshold")
 """The env keys of the drone's beacon (docs/model.md §4.9)."""
-LATER_KEYS = (*BEACON_KEYS, "divergence_range", "divergence_values", "residual_beams", "replica_actions")
+LATER_KEYS = (*BEACON_KEYS, "divergence_range", "divergence_values", "residual_beams", "replica_actions",
+              "replica_sensing")  # fmt: skip
 """The env keys that came after ``intensity`` and ``paper`` were trained: the beacon's (their sensors read none),
 each link's own divergence (they were trained at one, ``optics.divergence``), the transmitter's residual in
-beam widths and how each replica acts (after ``default`` too; null, their defaults, is how they were trained)."""
+beam widths and how each replica acts and senses (after ``default`` too; null, their defaults, is how they were
+trained)."""
 
 
 @pytest.mark.parametrize("name", list(SHIPPED))
@@ -539,15 +553,18 @@ def test_the_physics_figures_draw_the_sea_evaluated_on_each_sea(sea, names, tmp_
 def test_learned_policies_that_observe_and_act_otherwise_join_the_groups_of_their_step_and_do_as_alone():
     """The shipped policies: ``paper`` observes fewer parts than the baselines, ``default`` and ``intensity`` act as
     residuals (on the beacon tracker, on flat-sea Snell) and observe two frames of their own parts. Each joins
-    the group whose step is its own (``paper`` the ideal sensor's, the others their realistic one's) and reads,
-    acts and scores there as in a rollout of its own: the same gains to float32 rounding (the group also reads
-    the beacon, which a lattice's sums share with the uplink)."""
+    the baselines' group (their step is its own but for how they sense: ``paper`` the ideal sensor, the others their
+    realistic one, beside the controllers with it) and reads, acts, senses and scores there as in a rollout of its
+    own: the same gains to float32 rounding (the group also reads the beacon, which a lattice's sums share with the
+    uplink)."""
     plan = prepare(eval_cfg())
-    groups = {tuple(label for label, _ in members): config for config, members in plan.groups}
-    assert [labels[-1] for labels in groups] == ["ddpg paper", "ppo intensity"] and len(groups) == 2
-    late = next(config for labels, config in groups.items() if "ppo default" in labels)
-    assert late.frames == 2 and late.latency_steps == 1 and late.replica_actions is not None
-    assert [dict(a).get("action_mode") for a in late.replica_actions] == [None, None, None, "residual", "residual"]
+    ((config, members),) = plan.groups
+    labels = [label for label, _ in members]
+    assert labels[-3:] == ["ppo default", "ppo intensity", "ddpg paper"] and config.frames == 2
+    late = {label for label, replica in zip(labels, config.replica_configs(), strict=True) if replica.latency_steps}
+    assert late == {"ppo default", "ppo intensity", *(label for label in labels if "1-step latency" in label)}
+    assert config.latency_steps == 0 and len(late) == 5
+    assert [dict(a).get("action_mode") for a in config.replica_actions] == [None] * 10 + ["residual"] * 2 + [None]
     points = [(12.0, 0.1, 0.0), (20.0, 0.3, 45.0)]
     together = {}
     for config, members in plan.groups:

@@ -12,6 +12,7 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
+from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
 from waterair.physics.optics import unit_vector
 from waterair.physics.paths import flat_sea_point
@@ -26,9 +27,11 @@ class PointingPolicy(TensorDictModuleBase):
     required_extras: tuple[str, ...] = ()
     """Observation parts (``env.observation_extras``) the policy reads besides the paper's eight."""
 
-    def __init__(self, env: WaterAirEnv):
+    def __init__(self, env: WaterAirEnv, config: EnvConfig | None = None):
         super().__init__()
         self.env = env
+        self.config = config or env.config
+        """The configuration of the replica it acts in (``EnvConfig.replica_configs``): its sensing."""
 
     def directions(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, torch.Tensor]:
         """Unit transmitter (up) and receiver (down) pointing, each ``[B, 3]``."""

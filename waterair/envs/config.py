@@ -141,6 +141,8 @@ class EnvConfig:
     # evaluation's groups: replica k acts as replica_actions[k] says, a mapping of ACTION_KEYS (the keys above
     # where it names none; kept as (key, value) pairs); null: every replica acts as the keys above say
     replica_actions: tuple[Mapping | tuple, ...] | None = None
+    # and senses as replica_sensing[k] says, a mapping of SENSOR_KEYS (the same way)
+    replica_sensing: tuple[Mapping | tuple, ...] | None = None
     # torch.compile the whole step into one graph (one-off compile, cached by torch per machine;
     # ~4x faster CPU steps at B = 16, ~5x at 1024). train.py and evaluate.py turn it on. Not
     # "compile": TorchRL's EnvBase metaclass takes that keyword for itself.
@@ -199,7 +201,8 @@ class EnvConfig:
             raise ValueError(
                 f"env.replicas = {self.replicas} is not allowed; it must divide env.num_envs = {self.num_envs}"
             )
-        self._check_replica_actions()
+        self._check_replica_keys("replica_actions", ACTION_KEYS)
+        self._check_replica_keys("replica_sensing", SENSOR_KEYS)
         check_choice("env.solver", self.solver, ENV_SOLVERS)
         self.channel_model()  # validates the channel's settings, once
         if self.solver == "centroid" and not self.channel.centroid_solver:
@@ -223,32 +226,39 @@ class EnvConfig:
             given = f"{first} has {count} entries and " + ", ".join(f"{key} {n}" for key, n in others)
             raise ValueError(f"{given}; given together they must have one entry per scenario point")
 
-    def _check_replica_actions(self) -> None:
-        if self.replica_actions is None:
+    def _check_replica_keys(self, name: str, allowed: tuple[str, ...]) -> None:
+        """``env.<name>``: one mapping of some of ``allowed`` per replica, each valid; kept as (key, value) pairs."""
+        given = getattr(self, name)
+        if given is None:
             return
-        _check_list("env.replica_actions", self.replica_actions)
-        if len(self.replica_actions) != self.replicas:
-            raise ValueError(f"env.replica_actions has {len(self.replica_actions)} entries for env.replicas = "
-                             f"{self.replicas}; give one per replica (or null)")  # fmt: skip
+        _check_list(f"env.{name}", given)
+        if len(given) != self.replicas:
+            raise ValueError(f"env.{name} has {len(given)} entries for env.replicas = {self.replicas}; give one "
+                             "per replica (or null)")  # fmt: skip
         entries = []
-        for index, actions in enumerate(self.replica_actions):
-            key = f"env.replica_actions[{index}]"
-            actions = dict(actions) if isinstance(actions, Mapping | tuple) else actions
-            if not isinstance(actions, dict) or not set(actions) <= set(ACTION_KEYS):
-                raise ValueError(f"{key} = {actions!r} must map some of {', '.join(ACTION_KEYS)} to their values")
+        for index, keys in enumerate(given):
+            key = f"env.{name}[{index}]"
+            keys = dict(keys) if isinstance(keys, Mapping | tuple) else keys
+            if not isinstance(keys, dict) or not set(keys) <= set(allowed):
+                raise ValueError(f"{key} = {keys!r} must map some of {', '.join(allowed)} to their values")
             try:
-                self.replace(**actions, replica_actions=None)
+                self.replace(**keys, replica_actions=None, replica_sensing=None)
             except ValueError as error:
                 raise ValueError(f"{key}: {error}") from None
-            entries.append(tuple((name, actions[name]) for name in ACTION_KEYS if name in actions))  # hashable
-        object.__setattr__(self, "replica_actions", tuple(entries))
+            entries.append(tuple((each, keys[each]) for each in allowed if each in keys))  # hashable
+        object.__setattr__(self, name, tuple(entries))
 
     def replica_configs(self) -> list[EnvConfig]:
-        """The configuration each replica acts by (:data:`ACTION_KEYS` from ``replica_actions``), or this one alone
-        where every replica acts alike."""
-        if self.replica_actions is None:
+        """The configuration each replica acts and senses by (:data:`ACTION_KEYS` from ``replica_actions``,
+        :data:`SENSOR_KEYS` from ``replica_sensing``), or this one alone where every replica is alike."""
+        if self.replica_actions is None and self.replica_sensing is None:
             return [self]
-        return [self.replace(**dict(actions), replica_actions=None) for actions in self.replica_actions]
+        ways = [dict(keys) for keys in self.replica_actions or [{}] * self.replicas]
+        sensing = [dict(keys) for keys in self.replica_sensing or [{}] * self.replicas]
+        return [
+            self.replace(**way, **senses, replica_actions=None, replica_sensing=None)
+            for way, senses in zip(ways, sensing, strict=True)
+        ]
 
     def _check_values(self, name: str, low: float, high: float, unit: str) -> None:
         key, values = f"{name}_values", getattr(self, f"{name}_values")

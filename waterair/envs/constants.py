@@ -93,11 +93,19 @@ class StepConstants:
             replica_choice=tuple(distinct.index(a) for a in each) if distinct else (),
         )
 
-    def for_links(self, divergence: torch.Tensor) -> StepConstants:
+    def for_links(self, divergence: torch.Tensor, replica: torch.Tensor | None = None) -> StepConstants:
         """These constants for links with their own beam divergence ω_D ``[B]`` (rad; the state's): every gain
-        the step computes and its misalignment read link b's for link b (:meth:`Transceiver.for_links`)."""
+        the step computes and its misalignment read link b's for link b (:meth:`Transceiver.for_links`); where
+        replicas sense differently, the sensor's settings each row's (:meth:`Sensor.at`), the rows of the
+        replicas ``replica`` ``[B]`` (default: a whole batch, replica k's rows [k·n, (k+1)·n))."""
         optics = self.optics.for_links(divergence)
-        return replace(self, optics=optics, channel=replace(self.channel, optics=optics))
+        sensor = self.sensor
+        if sensor.replicas is not None:
+            rows = divergence.shape[0]
+            if replica is None:
+                replica = torch.arange(rows, device=divergence.device) // (rows // self.replicas)
+            sensor = sensor.at(replica)
+        return replace(self, optics=optics, channel=replace(self.channel, optics=optics), sensor=sensor)
 
     def traced(self, device: torch.device, dtype: torch.dtype) -> StepConstants:
         """These constants as the compiled step takes them: the numbers that differ between an evaluation's

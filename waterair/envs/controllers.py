@@ -51,7 +51,7 @@ class BeaconTracker(PointingPolicy):
             part(observation, "spot"),
             part(observation, "spot_valid")[:, 0] > 0.5,
         )
-        return beacon_pointing(beacon, spot, flat, self.env.config.beacon.half_fov, self.env.optics.half_fov)
+        return beacon_pointing(beacon, spot, flat, self.config.beacon.half_fov, self.env.optics.half_fov)
 
 
 class BeaconPredictor(BeaconTracker):
@@ -70,8 +70,8 @@ class BeaconPredictor(BeaconTracker):
 
     name = "beacon_predictor"
 
-    def __init__(self, env, max_step: float = 3e-3):
-        super().__init__(env)
+    def __init__(self, env, max_step: float = 3e-3, config=None):
+        super().__init__(env, config)
         self.max_step = max_step
         self.last: torch.Tensor | None = None  # [2, n, 3]: each end's direction from the last reading
         self.tracked: torch.Tensor | None = None  # [2, n]: whether that reading was seen while tracking
@@ -80,8 +80,8 @@ class BeaconPredictor(BeaconTracker):
         now = torch.stack(super().directions(tensordict))
         observation, part = tensordict.get("observation"), self.env.observation_part
         seen = torch.stack((part(observation, "beacon_valid")[:, 0], part(observation, "spot_valid")[:, 0])) > 0.5
-        beacon_parked = parked_reading(self.env, observation, latency_steps=0)  # the beacon is never late
-        tracked = seen & ~torch.stack((beacon_parked, parked_reading(self.env, observation)))
+        beacon_parked = parked_reading(self.env, observation, 0)  # the beacon is never late
+        tracked = seen & ~torch.stack((beacon_parked, parked_reading(self.env, observation, self.config.latency_steps)))
         if self.last is None or self.last.shape != now.shape:
             self.last, self.tracked = now, torch.zeros_like(tracked)
         move = now - self.last
@@ -115,7 +115,7 @@ class AoATracker(PointingPolicy):
         observation = tensordict.get("observation")
         boresight = self.env.observation_part(observation, "rx_pointing")
         spot = self.env.observation_part(observation, "spot")
-        parked = parked_reading(self.env, observation)
+        parked = parked_reading(self.env, observation, self.config.latency_steps)
         seen = (self.env.observation_part(observation, "spot_valid")[:, 0] > 0.5) & ~parked
         tx, rx = tensordict.get("tx_position"), tensordict.get("rx_position")
         return back_projection(boresight, spot, seen, tx, rx, (flat_tx, flat_rx), self.env.optics.half_fov)
@@ -161,10 +161,11 @@ class IntensityDither(PointingPolicy):
         min_intensity: float = 1e-3,
         max_offset: float = 0.15,
         smoothing: float | None = None,
+        config=None,
     ):
-        super().__init__(env)
+        super().__init__(env, config)
         self.radius, self.min_intensity, self.max_offset = radius, min_intensity, max_offset
-        noisy = env.config.intensity_noise > 0 or env.config.intensity_noise_floor > 0
+        noisy = self.config.intensity_noise > 0 or self.config.intensity_noise_floor > 0
         self.smoothing = smoothing if smoothing is not None else (NOISY_SMOOTHING if noisy else 1.0)
         self.offset: torch.Tensor | None = None  # [n, 2]: the smoothed fit's tilt from flat-sea Snell
         self.probes: torch.Tensor | None = None  # [n, PROBES, 3]: tilt x, tilt y, ln I (newest first)
@@ -177,7 +178,7 @@ class IntensityDither(PointingPolicy):
         tilt = self.env.observation_part(observation, "tx_pointing")[:, :2]
         intensity = intensity_from_feature(self.env.observation_part(observation, "intensity")[:, 0])
         fresh = self.env.observation_part(observation, "time")[:, 0] == 0
-        self._remember(tilt, intensity, fresh, parked_reading(self.env, observation))
+        self._remember(tilt, intensity, fresh, parked_reading(self.env, observation, self.config.latency_steps))
         flat_tilt = flat_tx[:, :2]
         divergence = tensordict.get("divergence").double()  # [n] float64: what is derived from it, as from a float
         best, usable = self._fit(flat_tilt, divergence)
@@ -234,12 +235,12 @@ class IntensityDither(PointingPolicy):
         return best, (self.count >= self.PROBES) & fitted
 
 
-def parked_reading(env, observation: torch.Tensor, latency_steps: int | None = None) -> torch.Tensor:
+def parked_reading(env, observation: torch.Tensor, latency_steps: int) -> torch.Tensor:
     """Whether each link's reading in ``observation`` ``[n]`` is the one read with the gimbals parked at the
     reset (:func:`waterair.envs.sensors.read_parked`), from the episode time the observation carries: the drone's
-    readings, ``latency_steps`` late (default: the environment's), or the beacon's (0: it is never late)."""
+    readings, ``latency_steps`` late (the controller's replica's), or the beacon's (0: it is never late)."""
     steps = torch.round(env.observation_part(observation, "time")[:, 0] * env.config.max_steps)
-    return read_parked(steps, env.config.latency_steps if latency_steps is None else latency_steps)
+    return read_parked(steps, latency_steps)
 
 
 CONTROLLERS = {cls.name: cls for cls in (BeaconTracker, BeaconPredictor, AoATracker, IntensityDither)}

@@ -106,7 +106,7 @@ class WaterAirEnv(EnvBase):
         self._channel_generator = torch.Generator()
         self._set_seed(config.seed)
         self.sensor = Sensor(
-            SensorSettings(**config.sensing),
+            [SensorSettings(**replica.sensing) for replica in config.replica_configs()],
             half_fov=self.optics.half_fov,
             generator=self._sensor_generator,
             beacon_half_fov=config.beacon.half_fov,
@@ -148,8 +148,9 @@ class WaterAirEnv(EnvBase):
         if rows.numel():
             self._reset_rows(rows)
         full = self._full_state()
-        self._base_tilt = kernel.base_tilts(self.constants, full)
-        out = self._output(kernel.observe(self.constants, full), reset=rows)
+        constants = self.constants.for_links(full.divergence)
+        self._base_tilt = kernel.base_tilts(constants, full)
+        out = self._output(kernel.observe(constants, full), reset=rows)
         done = torch.zeros(*self.batch_size, 1, dtype=torch.bool, device=self.device)
         out.update({"done": done, "terminated": done.clone(), "truncated": done.clone()})
         return out
@@ -257,7 +258,8 @@ class WaterAirEnv(EnvBase):
         tx, rx = (v.to(device, dtype).expand(batch, 3) for v in self.link.positions(torch.float64))
         prepared = self.channel.prepare(tx, rx, self.surface.unresolved)
         config = self.config
-        self.state = StepState.zeros(self.surface.harmonics, prepared, config.history_length, config.latency_steps)
+        latency = self.sensor.longest_latency
+        self.state = StepState.zeros(self.surface.harmonics, prepared, config.history_length, latency)
         self._base_tilt = zeros(4)  # the residual base controller's tilts for the next action
         self.measurement = Measurement(
             gain=zeros(),
@@ -298,7 +300,7 @@ class WaterAirEnv(EnvBase):
         offset, azimuth = offset[copy.cpu()], None if azimuth is None else azimuth[copy.cpu()]
         tx, rx = (v.to(self.device, dtype) for v in self.link.positions_for(offset, azimuth))
         divergence = draws.divergence(config, distinct, self._generator)[copy.cpu()].to(self.device)
-        constants = self.constants.for_links(divergence)
+        constants = self.constants.for_links(divergence, rows // (config.num_envs // config.replicas))
         reference = self.channel.reference_gain(tx.double(), rx.double()).to(dtype)
         prepared = constants.channel.prepare(tx, rx, self.surface.unresolved[rows])
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)

@@ -109,7 +109,7 @@ def base_tilts(c: StepConstants, state: StepState, base: str | None = None) -> t
     point, tx, rx = state.flat_point, state.tx_position, state.rx_position
     if base == "flat_snell":
         return flat_tilts(point, tx, rx)
-    delivered = deliver(state.packets).readings
+    delivered = deliver(state.packets, c.sensor.latency_steps).readings
     flat = unit_vector(point - tx), unit_vector(point - rx)
     if base == "beacon_tracker":
         assert c.beacon is not None  # EnvConfig.senses_beacon: a beacon base reads the beacon
@@ -236,12 +236,18 @@ def unpack(packet: torch.Tensor) -> Packet:
     return Packet(Readings(*readings), history)
 
 
-def deliver(packets: torch.Tensor) -> Packet:
-    """What reaches the controller, at the transmitter, of the packets in flight ``[n, latency_steps + 1, width]``
-    (newest first): the drone's readings, with the transmitter's pointing they were read with, over the return
-    link, the oldest packet; the beacon reading at once, the newest, for it is read at the transmitter, in the
-    frame of its present pointing (docs/environment.md, "Sensing")."""
-    late, now = unpack(packets[:, -1]), unpack(packets[:, 0]).readings
+def deliver(packets: torch.Tensor, latency_steps: int | torch.Tensor) -> Packet:
+    """What reaches the controller, at the transmitter, of the packets in flight ``[n, slots, width]`` (newest
+    first): the drone's readings, with the transmitter's pointing they were read with, over the return link,
+    ``latency_steps`` late (one, the last slot; or each row's ``[n]``, where replicas sense differently); the beacon
+    reading at once, the newest, for it is read at the transmitter, in the frame of its present pointing
+    (docs/environment.md, "Sensing")."""
+    if isinstance(latency_steps, torch.Tensor):
+        slot = latency_steps.reshape(-1, 1, 1).expand(-1, 1, packets.shape[-1])
+        late = unpack(packets.gather(1, slot)[:, 0])
+    else:
+        late = unpack(packets[:, -1])
+    now = unpack(packets[:, 0]).readings
     return late._replace(readings=late.readings._replace(beacon=now.beacon, beacon_valid=now.beacon_valid))
 
 
@@ -287,7 +293,7 @@ def step(c: StepConstants, state: StepState, action: torch.Tensor, noise: torch.
     (:func:`waterair.physics.paths.fixed.finish_unconverged`) and concluding again. ``noise`` is the
     sensor's draw for this step (:meth:`Sensor.draw`), or None for a noiseless one.
     """
-    moved = advance(c, state, action)
+    moved = advance(c.for_links(state.divergence), state, action)
     return conclude(c, state, moved, solve(c, state, moved.time), noise)
 
 
@@ -318,7 +324,7 @@ def observe(c: StepConstants, state: StepState) -> torch.Tensor:
     geometry), which is never late. An environment keeps the columns of the parts its layout asks
     for (:func:`observation_columns`), outside the graph, so that every preset shares one graph.
     """
-    delivered = deliver(state.packets)
+    delivered = deliver(state.packets, c.sensor.latency_steps)
     time = (state.time / c.episode_seconds).unsqueeze(-1)
     geometry = (state.rx_position - state.tx_position)[:, :2] / c.vertical_distance
     narrow, wide = DIVERGENCE_SPAN

@@ -15,14 +15,16 @@ drawn for it.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from copy import copy as shallow_copy
 from dataclasses import dataclass
+from typing import Any
 
 import torch
 
 from waterair.envs.noise import draw_nonce, normals
 from waterair.physics.channel import Beacon
-from waterair.physics.optics import Scalar, traced, transverse_frame, unit_vector
+from waterair.physics.optics import Scalar, per_link, traced, transverse_frame, unit_vector
 
 PACKET_PARTS = ("tx_pointing", "rx_pointing", "intensity", "spot", "spot_valid", "beacon", "beacon_valid", "history")
 """Observation parts that travel in the measurement packet: each arrives ``latency_steps`` late but the beacon's,
@@ -69,10 +71,11 @@ def spot_position(arrival: torch.Tensor, boresight: torch.Tensor, half_fov: floa
     )
 
 
-def read_parked(steps: torch.Tensor, latency_steps: int) -> torch.Tensor:
+def read_parked(steps: torch.Tensor, latency_steps: int | torch.Tensor) -> torch.Tensor:
     """Whether the packet delivered for the decision after ``steps`` ``[n]`` steps since a reset was read with
     the gimbals parked as the reset leaves them (straight up and down): the reset's own packet, which the
-    first ``latency_steps + 1`` decisions receive. A tracker learns nothing about its own pointing from it."""
+    first ``latency_steps`` (one, or each row's ``[n]``) + 1 decisions receive. A tracker learns nothing about its
+    own pointing from it."""
     return steps <= latency_steps
 
 
@@ -165,42 +168,78 @@ class Sensor:
     the compiled step from the sensor's own generator), so the step stays one graph.
 
     Args:
-        settings: the sensing keys (:class:`SensorSettings`).
+        settings: the sensing keys (:class:`SensorSettings`), or one per replica where the replicas sense
+            differently (``env.replica_sensing``: an evaluation's controllers with each sensor side by side).
         half_fov: receiver half field of view ω_A (rad), the spot's scale.
         generator: the CPU generator of the readings' nonces (its own, so that noise never shifts the seas).
         beacon_half_fov: the beacon detector's half field of view (rad), the beacon reading's scale.
+
+    Replicas that sense differently hold each setting as a tensor ``[replicas]`` (float64; the latency int64, no
+    saturation +inf), which :meth:`at` turns into one value per row; a noise source is drawn where any replica
+    has it, and a replica without it reads it at level 0, its true value unchanged.
     """
 
     def __init__(
         self,
-        settings: SensorSettings,
+        settings: SensorSettings | Sequence[SensorSettings],
         half_fov: float,
         generator: torch.Generator,
         beacon_half_fov: float = Beacon.half_fov,
     ):
-        self.latency_steps = settings.latency_steps
-        self.intensity_noise: Scalar = settings.intensity_noise
-        self.intensity_noise_floor: Scalar = settings.intensity_noise_floor
-        self.intensity_saturation = settings.intensity_saturation
-        self.spot_noise: Scalar = settings.spot_noise_rad / math.tan(half_fov)
-        self.spot_threshold: Scalar = settings.spot_threshold
-        self.beacon_noise: Scalar = settings.beacon_noise_rad / math.tan(beacon_half_fov)
-        self.beacon_threshold: Scalar = settings.beacon_threshold
+        each = [settings] if isinstance(settings, SensorSettings) else list(settings)
+        self.replicas = len(each) if len(set(each)) > 1 else None
+        """The replicas that sense differently, or None where every row senses alike (plain settings)."""
+
+        def setting(values: list) -> Any:  # one value, or a tensor of each replica's (float64, or int64)
+            kind = torch.int64 if isinstance(values[0], int) else torch.float64
+            return values[0] if self.replicas is None else torch.tensor(values, dtype=kind)
+
+        self.latency_steps: int | torch.Tensor = setting([s.latency_steps for s in each])
+        self.intensity_noise: Scalar = setting([float(s.intensity_noise) for s in each])
+        self.intensity_noise_floor: Scalar = setting([float(s.intensity_noise_floor) for s in each])
+        saturation = [math.inf if s.intensity_saturation is None else float(s.intensity_saturation) for s in each]
+        self.intensity_saturation: Scalar | None = (
+            setting(saturation) if self.replicas else each[0].intensity_saturation
+        )
+        self.spot_noise: Scalar = setting([s.spot_noise_rad / math.tan(half_fov) for s in each])
+        self.spot_threshold: Scalar = setting([float(s.spot_threshold) for s in each])
+        self.beacon_noise: Scalar = setting([s.beacon_noise_rad / math.tan(beacon_half_fov) for s in each])
+        self.beacon_threshold: Scalar = setting([float(s.beacon_threshold) for s in each])
         self.generator = generator
-        # which noise sources are on: decided here, on the floats, so that a traced copy branches the same way
-        self.noisy_intensity = bool(settings.intensity_noise or settings.intensity_noise_floor)
-        self.noisy_spot = bool(settings.spot_noise_rad)
-        self.noisy_beacon = bool(settings.beacon_noise_rad)
+        self.longest_latency = max(s.latency_steps for s in each)
+        """The packets in flight are this many + 1, whatever each row's latency."""
+        # which noise sources are on, for any replica: decided here, on the floats, so that a traced copy branches
+        # the same way
+        self.noisy_intensity = any(s.intensity_noise or s.intensity_noise_floor for s in each)
+        self.noisy_spot = any(s.spot_noise_rad for s in each)
+        self.noisy_beacon = any(s.beacon_noise_rad for s in each)
         self._noise_on = torch.tensor([self.noisy_intensity] * 2 + [self.noisy_spot] * 2 + [self.noisy_beacon] * 2)
 
     def traced(self, device: torch.device, dtype: torch.dtype) -> Sensor:
         """This sensor as a compiled step takes it: its noise levels and thresholds one-element tensors in
         ``dtype`` on ``device`` (:func:`~waterair.physics.optics.traced`), so that one graph serves every setting of
         them (as floats they would be compiled in, and a group of policies with another sensor would compile the
-        step again). Same readings, same draws."""
+        step again); per replica settings on ``device``, in ``dtype`` but the latency. Same readings, same draws."""
         copy = shallow_copy(self)
-        for name in TRACED_SETTINGS:
-            setattr(copy, name, traced(getattr(self, name), device, dtype))
+        if self.replicas is None:
+            for name in TRACED_SETTINGS:
+                setattr(copy, name, traced(getattr(self, name), device, dtype))
+            return copy
+        for name in (*TRACED_SETTINGS, "intensity_saturation", "latency_steps"):
+            value = getattr(self, name)
+            setattr(copy, name, value.to(device) if name == "latency_steps" else value.to(device, dtype))
+        return copy
+
+    def at(self, replica: torch.Tensor) -> Sensor:
+        """This sensor for rows of the replicas ``replica`` ``[n]`` (int64): each setting one value per row
+        ``[n]``; a sensor whose rows sense alike is returned as it is."""
+        if self.replicas is None:
+            return self
+        copy = shallow_copy(self)
+        for name in (*TRACED_SETTINGS, "intensity_saturation", "latency_steps"):
+            value = getattr(self, name)
+            setattr(copy, name, value.to(replica.device)[replica])
+        copy.replicas = None  # one value per row: read as they are
         return copy
 
     def draw(self, keys: torch.Tensor, dtype: torch.dtype, device: torch.device) -> torch.Tensor | None:
@@ -220,10 +259,11 @@ class Sensor:
         """Measured intensity ``[n]``: I (1 + σ_rel n1) + σ_floor n2, clipped to [0, saturation]."""
         measured = true
         if self.noisy_intensity and noise is not None:
-            measured = (
-                true * (1.0 + self.intensity_noise * noise[:, 0]) + self.intensity_noise_floor * noise[:, 1]
-            ).clamp(min=0.0)
-        if self.intensity_saturation is not None:
+            relative, floor = per_link(self.intensity_noise, true), per_link(self.intensity_noise_floor, true)
+            measured = (true * (1.0 + relative * noise[:, 0]) + floor * noise[:, 1]).clamp(min=0.0)
+        if isinstance(self.intensity_saturation, torch.Tensor):  # per row (no saturation: +inf)
+            measured = torch.minimum(measured, per_link(self.intensity_saturation, measured))
+        elif self.intensity_saturation is not None:
             measured = measured.clamp(max=self.intensity_saturation)
         return measured
 
@@ -245,6 +285,6 @@ def _gated(true: torch.Tensor, valid: torch.Tensor, noisy: bool, scale: Scalar, 
     columns ``column``, ``column + 1`` where the detector is ``noisy`` and a draw is given, 0 where not ``valid``."""
     reading = true
     if noisy and noise is not None:
-        reading = true + scale * noise[:, column : column + 2]
+        reading = true + per_link(scale, true) * noise[:, column : column + 2]
     reading = torch.where(valid.unsqueeze(-1), reading, torch.zeros_like(reading))
     return reading, valid.to(true.dtype)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import torch
 from tensordict.nn import TensorDictModuleBase
@@ -40,13 +41,14 @@ class PolicySplit(TensorDictModuleBase):
 
 class JoinedPolicy(TensorDictModuleBase):
     """A learned ``policy`` acting in a group of policies whose step is its own but whose observation has more
-    parts or frames and whose replicas may act otherwise: it reads its own ``columns`` of the observation
-    (:meth:`EnvConfig.columns_in`) and its replica acts as ``actions`` says (``env.replica_actions``), which is what
-    its own environment would have given and done."""
+    parts or frames and whose replicas may act and sense otherwise: it reads its own ``columns`` of the
+    observation (:meth:`EnvConfig.columns_in`) and its replica acts as ``actions`` and senses as ``sensing`` say
+    (``env.replica_actions``, ``env.replica_sensing``), which is what its own environment would have given and
+    done."""
 
-    def __init__(self, policy: TensorDictModuleBase, columns: Sequence[int], actions: dict):
+    def __init__(self, policy: TensorDictModuleBase, columns: Sequence[int], actions: dict, sensing: dict):
         super().__init__()
-        self.policy, self.actions = policy, actions
+        self.policy, self.actions, self.sensing = policy, actions, sensing
         self.in_keys, self.out_keys = list(policy.in_keys), list(policy.out_keys)
         self.register_buffer("columns", torch.tensor(list(columns), dtype=torch.long))
 
@@ -54,6 +56,20 @@ class JoinedPolicy(TensorDictModuleBase):
         view = tensordict.copy()  # the caller's observation stays whole
         view.set("observation", view.get("observation").index_select(-1, self.columns.to(view.device)))
         return self.policy(view)
+
+
+class Sensed(NamedTuple):
+    """A baseline or classical controller, by ``name``, in a replica that senses as ``sensing`` says (some of the
+    sensing keys, ``env.replica_sensing``): the controllers with a learned policy's sensor beside those with the
+    scenario's."""
+
+    name: str
+    sensing: dict
+
+
+def reference_name(member) -> str | None:
+    """The baseline or controller a group's member is (a name, or :class:`Sensed`), or None for a learned one."""
+    return member if isinstance(member, str) else member.name if isinstance(member, Sensed) else None
 
 
 def rollout_policies(env_config: EnvConfig, members, points, realisations: int, steps: int, seed: int) -> dict:
@@ -82,7 +98,11 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
             divergence_values=None,
         )
     )
-    policies = [REFERENCES[policy](env) if isinstance(policy, str) else policy for _, policy in members]
+    configs = env.config.replica_configs()  # each replica's own sensing, for the controllers that read it
+    policies = [
+        REFERENCES[name](env, config=configs[k % len(configs)]) if (name := reference_name(policy)) else policy
+        for k, (_, policy) in enumerate(members)
+    ]
     env.set_seed(seed)
     with set_exploration_type(ExplorationType.DETERMINISTIC), torch.no_grad():
         rollout = env.rollout(steps, PolicySplit(policies, links), break_when_any_done=False)

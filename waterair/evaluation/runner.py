@@ -39,7 +39,7 @@ from waterair.evaluation.policies import (
     load_policy,
     trained_on,
 )
-from waterair.evaluation.rollouts import REFERENCES, rollout_policies
+from waterair.evaluation.rollouts import REFERENCES, reference_name, rollout_policies
 from waterair.evaluation.scenarios import Scenario, scenarios_from_config
 from waterair.physics.link import LinkBudget
 
@@ -210,10 +210,10 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
             for label in dict.fromkeys(p.label for p in plan.policies)
         ]
         + [
-            {"label": label, "kind": "baseline", "baseline": name}
+            {"label": label, "kind": "baseline", "baseline": reference_name(member)}
             for _, members in plan.groups
-            for label, name in members
-            if isinstance(name, str)
+            for label, member in members
+            if reference_name(member)
         ],
         env=plan.env,
         link=plan.link,
@@ -257,7 +257,7 @@ def _acting(plan: EvaluationPlan, divergence: float) -> list[tuple]:
     actors = {id(actor) for policy, _, actor in plan.learned if id(policy) in acting}
     groups = []
     for env_config, group in plan.groups:
-        kept = [(label, member) for label, member in group if isinstance(member, str) or id(actor_of(member)) in actors]
+        kept = [(label, member) for label, member in group if reference_name(member) or id(actor_of(member)) in actors]
         if kept:
             groups.append((side_by_side(env_config, kept), kept))
     return groups
