@@ -270,14 +270,20 @@ class Sensor:
     def spot(self, true: torch.Tensor, lit: torch.Tensor, measured_intensity: torch.Tensor, noise):
         """Spot reading ``[n, 2]`` and its validity ``[n]`` (float 0/1): noisy where light is seen, else 0."""
         return _gated(
-            true, lit & (measured_intensity >= self.spot_threshold), self.noisy_spot, self.spot_noise, noise, 2
+            true,
+            lit & (measured_intensity >= per_link(self.spot_threshold, measured_intensity)),
+            self.noisy_spot,
+            self.spot_noise,
+            noise,
+            2,
         )
 
     def beacon(self, true: torch.Tensor, lit: torch.Tensor, intensity: torch.Tensor, noise):
         """Beacon reading ``[n, 2]`` and its validity ``[n]`` (float 0/1) at the transmitter: the true reading
         ``[n, 2]`` plus noise where the beacon's light is seen (``lit``) at ``intensity`` (G_B over its calm-sea
         value) at or above the threshold, else 0."""
-        return _gated(true, lit & (intensity >= self.beacon_threshold), self.noisy_beacon, self.beacon_noise, noise, 4)
+        seen = lit & (intensity >= per_link(self.beacon_threshold, intensity))  # compared in the readings' dtype
+        return _gated(true, seen, self.noisy_beacon, self.beacon_noise, noise, 4)
 
 
 def _gated(true: torch.Tensor, valid: torch.Tensor, noisy: bool, scale: Scalar, noise, column: int):
