@@ -30,7 +30,7 @@ from waterair.physics.surface import WaveSurface
 RECOMPILE_LIMIT = 128
 """Graphs torch may compile per kernel function in one process. Every environment configuration is a graph of
 its own (the guards are on it), and torch's default limit of 8 is reached by one evaluation (a group of
-policies per sensing and interface, each on more than one batch): past it torch runs the step eagerly, 15×
+policies per step, each on more than one batch): past it torch runs the step eagerly, 15×
 slower on the full channel, after a wall of warnings."""
 FINISH_ITERATIONS = 8
 """Masked Newton iterations of the links a step's fixed-iteration solve leaves unconverged."""
