@@ -56,6 +56,7 @@ class Record(NamedTuple):
 
 def advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
     """Gimbals, action history and clock after ``action`` ``[B, 4]`` (already clipped to [-1, 1])."""
+    c = c.for_links(state.divergence)  # each row's sensor latency, where replicas sense differently
     if c.replica_actions:  # replica k's rows [k·n, (k+1)·n) act its own way: each way on every row, then chosen
         ways = [aimed_tilts(c, actions, state, action) for actions in c.replica_actions]
         replica = torch.arange(action.shape[0], device=action.device) // (action.shape[0] // c.replicas)
@@ -293,7 +294,7 @@ def step(c: StepConstants, state: StepState, action: torch.Tensor, noise: torch.
     (:func:`waterair.physics.paths.fixed.finish_unconverged`) and concluding again. ``noise`` is the
     sensor's draw for this step (:meth:`Sensor.draw`), or None for a noiseless one.
     """
-    moved = advance(c.for_links(state.divergence), state, action)
+    moved = advance(c, state, action)
     return conclude(c, state, moved, solve(c, state, moved.time), noise)
 
 
