@@ -386,6 +386,20 @@ def test_one_batch_for_all_policies_gives_the_same_numbers_as_one_rollout_each(t
             assert batched[name] == pytest.approx(alone[name], rel=1e-5, abs=1e-12), (batched["policy"], name)
 
 
+def test_the_controllers_with_a_policys_sensor_score_beside_the_baselines_as_alone(tiny_run):
+    """The classical controllers with the tiny run's sensor (one step late, noisy, saturating) run as replicas of
+    the baselines' group that sense their own way, each reading its replica's latency and noise: every policy's
+    metrics as in a rollout of its own, its sensor the whole batch's."""
+    skip = ("scenarios.S2=null", "scenarios.S3=null", "scenarios.S4=null")
+    runs = [evaluate(eval_cfg(f"run={tiny_run}", f"batch_policies={together}", *skip)) for together in (True, False)]
+    sensed = [row["policy"] for row in runs[0].rows if "1-step latency" in row["policy"]]
+    assert len(sensed) == 3 and len(runs[0].rows) == len(runs[1].rows)
+    for batched, alone in zip(runs[0].rows, runs[1].rows, strict=True):
+        assert batched["policy"] == alone["policy"]
+        for name in METRICS:
+            assert batched[name] == pytest.approx(alone[name], rel=1e-5, abs=1e-12), (batched["policy"], name)
+
+
 def test_missing_and_corrupt_checkpoints_give_one_line_naming_the_file(tmp_path):
     missing = tmp_path / "nope.pt"
     with pytest.raises(CheckpointError) as info:
