@@ -249,10 +249,10 @@ class EnvConfig:
         object.__setattr__(self, name, tuple(entries))
 
     def replica_configs(self) -> list[EnvConfig]:
-        """The configuration each replica acts and senses by (:data:`ACTION_KEYS` from ``replica_actions``,
-        :data:`SENSOR_KEYS` from ``replica_sensing``), or this one alone where every replica is alike."""
+        """The configuration each replica acts and senses by, one per replica (:data:`ACTION_KEYS` from
+        ``replica_actions``, :data:`SENSOR_KEYS` from ``replica_sensing``; this one where neither is set)."""
         if self.replica_actions is None and self.replica_sensing is None:
-            return [self]
+            return [self] * self.replicas
         ways = [dict(keys) for keys in self.replica_actions or [{}] * self.replicas]
         sensing = [dict(keys) for keys in self.replica_sensing or [{}] * self.replicas]
         return [

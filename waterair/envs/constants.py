@@ -101,11 +101,14 @@ class StepConstants:
         optics = self.optics.for_links(divergence)
         sensor = self.sensor
         if sensor.replicas is not None:
-            rows = divergence.shape[0]
-            if replica is None:
-                replica = torch.arange(rows, device=divergence.device) // (rows // self.replicas)
-            sensor = sensor.at(replica)
+            sensor = sensor.at(self.replica_of_rows(divergence) if replica is None else replica)
         return replace(self, optics=optics, channel=replace(self.channel, optics=optics), sensor=sensor)
+
+    def replica_of_rows(self, like: torch.Tensor) -> torch.Tensor:
+        """The replica of each row ``[B]`` (int64) of a whole batch shaped as ``like`` ``[B, ...]``: replica k's rows
+        are [k·n, (k+1)·n)."""
+        rows = like.shape[0]
+        return torch.arange(rows, device=like.device) // (rows // self.replicas)
 
     def traced(self, device: torch.device, dtype: torch.dtype) -> StepConstants:
         """These constants as the compiled step takes them: the numbers that differ between an evaluation's

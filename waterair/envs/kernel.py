@@ -59,8 +59,7 @@ def advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
     c = c.for_links(state.divergence)  # each row's sensor latency, where replicas sense differently
     if c.replica_actions:  # replica k's rows [k·n, (k+1)·n) act its own way: each way on every row, then chosen
         ways = [aimed_tilts(c, actions, state, action) for actions in c.replica_actions]
-        replica = torch.arange(action.shape[0], device=action.device) // (action.shape[0] // c.replicas)
-        way = torch.tensor(c.replica_choice, device=action.device)[replica].unsqueeze(-1)
+        way = torch.tensor(c.replica_choice, device=action.device)[c.replica_of_rows(action)].unsqueeze(-1)
         tx, rx = ways[0]
         for index, (tx_k, rx_k) in enumerate(ways[1:], start=1):
             tx, rx = torch.where(way == index, tx_k, tx), torch.where(way == index, rx_k, rx)

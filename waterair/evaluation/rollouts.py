@@ -100,7 +100,7 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
     )
     configs = env.config.replica_configs()  # each replica's own sensing, for the controllers that read it
     policies = [
-        REFERENCES[name](env, config=configs[k % len(configs)]) if (name := reference_name(policy)) else policy
+        REFERENCES[name](env, config=configs[k]) if (name := reference_name(policy)) else policy
         for k, (_, policy) in enumerate(members)
     ]
     env.set_seed(seed)
