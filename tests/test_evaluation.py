@@ -65,6 +65,7 @@ EVAL_TINY = [
     "scenarios.S4.realisations=2",
     "scenarios.S4.steps=8",
     "scenarios.S5=null",  # its own test
+    "workers=1",  # in the test's process; processes of their own: test_workers.py
 ]
 S5_TINY = [
     "scenarios.S1=null",
@@ -375,8 +376,10 @@ def test_one_batch_for_all_policies_gives_the_same_numbers_as_one_rollout_each(t
         evaluate(eval_cfg(f"checkpoint={policy}", f"batch_policies={together}", *skip), progress=lines[together].append)
         for together in (True, False)
     ]
-    # one progress line per rollout, each with its own duration: S1 and S2 × one batch (the baselines, the
-    # controllers and the policy, which reads its own columns of their observation), or × 8 policies one at a time
+    # its processes, then one progress line per rollout, each with its own duration: S1 and S2 × one batch (the
+    # baselines, the controllers and the policy, which reads its own columns of their observation), or × 8
+    # policies one at a time
+    assert all(lines[together].pop(0).startswith("Evaluating in 1 process of ") for together in lines)
     assert len(lines[True]) == 2 * 1 and len(lines[False]) == 2 * 8
     assert all(re.search(r": .+ in \d+ s \(eager\)$", line) for line in lines[True] + lines[False]), lines
     assert len(results[0].rows) == len(results[1].rows) == (1 + 2) * 9

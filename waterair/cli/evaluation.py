@@ -24,13 +24,12 @@ def run(cfg: DictConfig, output_dir: str | Path) -> None:
     """Evaluate, log one line per rollout with its time, write the outputs and say where they are.
 
     torch's threads follow train.py's ``threads: auto`` (:func:`waterair.core.threads.choose_threads`;
-    ``OMP_NUM_THREADS`` sets them).
+    ``OMP_NUM_THREADS`` sets them); ``workers`` runs the batches in processes of their own
+    (:mod:`waterair.evaluation.workers`).
     """
     quiet_dependencies()
     out = Path(output_dir)
-    threads, why = choose_threads(AUTO)
-    log.info(f"Running on {threads} torch thread{'s' if threads > 1 else ''} ({why})")
-    with torch_threads(threads):
+    with torch_threads(choose_threads(AUTO)[0]):  # the batches' processes say theirs (``workers``)
         result = evaluate(cfg, progress=log.info)
     written = write_outputs(result, out, cfg, physics=cfg.physics_figures)
     figures = sum(path.suffix == ".png" for path in written)

@@ -52,6 +52,18 @@ def choose_threads(
     setting = check_threads(setting)
     if setting != AUTO:
         return int(setting), "as configured"
+    affinity = len(os.sched_getaffinity(0)) if affinity is None else affinity
+    given = given_cpus(environ, affinity)
+    if given is not None:
+        return given
+    if affinity == 1:
+        return 1, "auto: 1 CPU in this process's affinity"
+    return affinity - 1, f"auto: {affinity} CPUs in this process's affinity, one left to the rest of the machine"
+
+
+def given_cpus(environ: Mapping[str, str] | None = None, affinity: int | None = None) -> tuple[int, str] | None:
+    """The CPUs whoever started this process gave it (rules 1 and 2 of the module docstring) and a line saying
+    why; None when neither ``OMP_NUM_THREADS`` nor a Slurm allocation says."""
     environ = os.environ if environ is None else environ
     affinity = len(os.sched_getaffinity(0)) if affinity is None else affinity
     omp = _count(environ.get("OMP_NUM_THREADS"))
@@ -62,9 +74,7 @@ def choose_threads(
         if allocated is not None:
             cpus = min(allocated, affinity)
             return cpus, f"auto: the {cpus} CPUs of this Slurm job ({name} = {allocated}, affinity {affinity})"
-    if affinity == 1:
-        return 1, "auto: 1 CPU in this process's affinity"
-    return affinity - 1, f"auto: {affinity} CPUs in this process's affinity, one left to the rest of the machine"
+    return None
 
 
 @contextmanager

@@ -22,6 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from waterair.core.compiling import CHOICES as COMPILE_CHOICES
 from waterair.core.devices import resolve_device
+from waterair.core.threads import AUTO
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.config import EnvConfig
 from waterair.envs.link import link_budget
@@ -41,6 +42,7 @@ from waterair.evaluation.policies import (
 )
 from waterair.evaluation.rollouts import REFERENCES, reference_name, rollout_policies
 from waterair.evaluation.scenarios import Scenario, scenarios_from_config
+from waterair.evaluation.workers import Batch, choose_workers, run_batches
 from waterair.physics.link import LinkBudget
 
 UPPER_BOUND = "upper_bound"
@@ -141,6 +143,9 @@ class EvaluationPlan:
     batch_policies: bool
     groups: list[tuple] = field(default_factory=list)  # (env config, [(label, policy or baseline name)])
     links: dict[tuple[str, float], LinkBudget] = field(default_factory=dict)  # S5's, per divergence
+    workers: int = 1  # processes running the batches (``workers``, :mod:`waterair.evaluation.workers`)
+    threads: int = 1  # torch threads in each of them, where there are several
+    processes: str = "1 process"  # a line saying how many of each and why
 
 
 def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) -> EvaluationPlan:
@@ -191,7 +196,12 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
     if compile_kernel == "auto":  # each group compiles when its own frames repay its graphs (evaluation/compiling.py)
         per_policy = sum(len(s.points) * s.realisations * s.steps * max(1, len(s.divergences)) for s in scenarios)
         groups = [(compiled_group(config, len(members) * per_policy)[0], members) for config, members in groups]
-    return EvaluationPlan(scenarios, bootstrap, base, link, baselines, list(policies), learned, together, groups, links)
+    batches = sum(max(1, len(batch[0].divergences)) for batch in _batches(scenarios))
+    workers, threads, processes = choose_workers(cfg.get("workers", AUTO), batches, base.device)
+    return EvaluationPlan(
+        scenarios, bootstrap, base, link, baselines, list(policies), learned, together, groups, links,
+        workers, threads, processes,
+    )  # fmt: skip
 
 
 def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, progress=print) -> Evaluation:
@@ -219,8 +229,8 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
         link=plan.link,
         links=plan.links,
     )
-    with varying_environments():  # one step graph per policy group, whatever the batch
-        _run(plan, result, progress)
+    progress(f"Evaluating in {plan.processes}")
+    _run(plan, result, progress)
     result.seconds = time.perf_counter() - clock
     return result
 
@@ -229,26 +239,27 @@ def _run(plan: EvaluationPlan, result: Evaluation, progress) -> None:
     """Every scenario batch at each of its divergences, every policy group on it, into ``result``."""
     # Scenarios with the same realisations, steps and seed run as one batch over the union of their
     # points; within it, every group of policies sharing an interface runs as replicas of one env.
-    for batch in _batches(plan.scenarios):
-        points = list(dict.fromkeys(p for s in batch for p in s.points))
-        first = batch[0]
-        names = "+".join(s.name for s in batch)
+    batches, collected = [], []
+    for scenarios in _batches(plan.scenarios):
+        points = list(dict.fromkeys(p for s in scenarios for p in s.points))
+        first = scenarios[0]
+        names = "+".join(s.name for s in scenarios)
         for divergence in first.divergences or (None,):  # S5: every point at each divergence
             at = f" at {divergence * 1e3:g} mrad" if divergence is not None else ""
             what = f"{names}{at} ({len(points)} points × {first.realisations} seas × {first.steps} steps)"
-            runs = {}
-            for env_config, members in _acting(plan, divergence or plan.env.optics.divergence):
-                start = time.perf_counter()
-                env_config = at_divergence(env_config, divergence)
-                runs.update(rollout_policies(env_config, members, points, first.realisations, first.steps, first.seed))
-                note_compiled(env_config)
-                labels = ", ".join(label for label, _ in members)
-                how = "compiled" if env_config.compile_kernel else "eager"
-                progress(f"{what}: {labels} in {time.perf_counter() - start:.0f} s ({how})")
-            for scenario in batch:
-                index = torch.tensor([points.index(p) for p in scenario.points])
-                selected = {label: {k: v[:, index] for k, v in t.items()} for label, t in runs.items()}
-                _collect(result, scenario, selected, plan.bootstrap, divergence)
+            groups = [
+                (at_divergence(env_config, divergence), members)
+                for env_config, members in _acting(plan, divergence or plan.env.optics.divergence)
+            ]
+            batches.append(Batch(what, groups, points, first.realisations, first.steps, first.seed))
+            collected.append((scenarios, points, divergence))
+    for runs, (scenarios, points, divergence) in zip(
+        run_batches(batches, plan.workers, plan.threads, progress), collected, strict=True
+    ):
+        for scenario in scenarios:
+            index = torch.tensor([points.index(p) for p in scenario.points])
+            selected = {label: {k: v[:, index] for k, v in t.items()} for label, t in runs.items()}
+            _collect(result, scenario, selected, plan.bootstrap, divergence)
 
 
 def _acting(plan: EvaluationPlan, divergence: float) -> list[tuple]:
