@@ -6,7 +6,7 @@ size is symbolic, :func:`waterair.envs.stepper.varying_environments`). So the ba
 their own and give the numbers one process gives, bit for bit where each process runs on as many torch threads
 as the one process would (one, on 2 CPUs). Processes of one thread each never wait for each other, as a team of
 threads waits for its slowest at every parallel operation (:mod:`waterair.core.threads`), so ``auto`` takes
-every CPU, not all but one: on the 2-core VM, two processes finish an evaluation in about 0.6 of one's time
+every CPU, not all but one: on the 2-core VM, two processes finish an evaluation in 0.6–0.7 of one's time
 (docs/benchmarks.md, "Evaluation"). Each process compiles or loads a group's graphs itself; into an empty
 compile cache they compile at once, on a core each.
 """
