@@ -1,12 +1,15 @@
 """An evaluation's batches in processes of their own (``workers``): how many, and the same numbers as one."""
 
+import multiprocessing
+
 import pytest
 import torch
 from conftest import rejection
 from test_evaluation import S5_TINY, eval_cfg, write_policy
 
+from waterair.envs.config import EnvConfig
 from waterair.evaluation.runner import evaluate
-from waterair.evaluation.workers import choose_workers
+from waterair.evaluation.workers import Batch, choose_workers, run_batches
 
 
 @pytest.mark.parametrize(
@@ -54,3 +57,16 @@ def test_an_evaluation_in_two_processes_gives_one_processs_numbers_bit_for_bit(t
         for label, trace in traces.items():
             for key, value in trace.items():
                 assert torch.equal(apart.traces[scenario][label][key], value), (scenario, label, key)
+
+
+def test_a_batchs_error_in_its_process_is_raised_in_the_evaluations_and_ends_the_others():
+    """A member that is no baseline fails in its process (after the checks an evaluation makes, as a fault would):
+    the error comes back with its type, and no process is left running."""
+    config = EnvConfig(num_envs=2, max_steps=10, compile_kernel=False)
+    batches = [
+        Batch(f"batch {k}", [(config, [("x", "no_such_controller")])], [(12.0, 0.1, 0.0)], 2, 4, k) for k in (0, 1)
+    ]
+    lines: list[str] = []
+    with pytest.raises(KeyError, match="no_such_controller"):
+        run_batches(batches, workers=2, threads=1, progress=lines.append)
+    assert lines == [] and multiprocessing.active_children() == []

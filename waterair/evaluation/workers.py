@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import torch
@@ -93,7 +93,7 @@ def run_batch(batch: Batch) -> tuple[dict, list[str]]:
 def run_batches(batches: Sequence[Batch], workers: int, threads: int, progress: Callable[[str], object]) -> list:
     """:func:`run_batch` of each of ``batches``, in ``workers`` processes of ``threads`` torch threads (1: in
     this one, on its threads), the largest first; their results in ``batches``' order, their progress lines as
-    they finish."""
+    they finish. Ctrl-C, or a batch's error, ends the processes at once and is raised here."""
     results: list = [None] * len(batches)
 
     def finished(index: int, result: tuple[dict, list[str]]) -> None:
@@ -109,12 +109,25 @@ def run_batches(batches: Sequence[Batch], workers: int, threads: int, progress: 
         return results
     order = sorted(range(len(batches)), key=lambda i: -batches[i].frames)
     spawn = multiprocessing.get_context("spawn")  # a forked torch inherits its threads' locks
-    with ProcessPoolExecutor(workers, mp_context=spawn, initializer=torch.set_num_threads, initargs=(threads,)) as pool:
-        futures = {pool.submit(run_batch, batches[i]): i for i in order}
-        try:
-            for future in as_completed(futures):
-                finished(futures[future], future.result())
-        except BaseException:
-            pool.shutdown(cancel_futures=True)
-            raise
+    pool = spawn.Pool(workers, initializer=_start_process, initargs=(threads,))
+    try:
+        for index, result in pool.imap_unordered(_run_indexed, [(i, batches[i]) for i in order]):
+            finished(index, result)
+        pool.close()
+    except BaseException:
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
     return results
+
+
+def _start_process(threads: int) -> None:
+    """A batches' process: ``threads`` torch threads; Ctrl-C is left to the evaluation's process, which ends it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    torch.set_num_threads(threads)
+
+
+def _run_indexed(item: tuple[int, Batch]) -> tuple[int, tuple[dict, list[str]]]:
+    index, batch = item
+    return index, run_batch(batch)
