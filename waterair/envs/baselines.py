@@ -1,7 +1,7 @@
 """Model-based alignment baselines as TensorDict policies (docs/environment.md, baselines).
 
-Each policy reads what the environment writes into the tensordict (``tx_position``,
-``rx_position`` and, for tracking, the last path's ``departure``/``arrival``) and writes
+Each policy reads what the environment writes into the tensordict (``tx_position``, ``rx_position``, the
+calm-sea point ``flat_point`` and, for tracking, the last path's ``departure``/``arrival``) and writes
 ``action``, so it runs through exactly the same ``env.rollout`` as a learned agent. The upper
 bound is not a policy: the environment reports ``gain_upper_bound`` every step.
 """
@@ -15,13 +15,12 @@ from tensordict.nn import TensorDictModuleBase
 from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
 from waterair.physics.optics import unit_vector
-from waterair.physics.paths import flat_sea_point
 
 
 class PointingPolicy(TensorDictModuleBase):
     """Base class: subclasses say where each end should point; this turns it into an action."""
 
-    in_keys = ["tx_position", "rx_position", "divergence", "observation", "tilt", "base_tilt"]
+    in_keys = ["tx_position", "rx_position", "flat_point", "divergence", "observation", "tilt", "base_tilt"]
     out_keys = ["action"]
     name = "pointing"
     required_extras: tuple[str, ...] = ()
@@ -77,7 +76,7 @@ class FlatSeaSnell(PointingPolicy):
 
     def directions(self, tensordict):
         tx, rx = tensordict.get("tx_position"), tensordict.get("rx_position")
-        point = flat_sea_point(tx, rx, self.env.optics.n_water, self.env.optics.n_air)
+        point = tensordict.get("flat_point")  # the environment's, solved once a link at its reset
         return unit_vector(point - tx), unit_vector(point - rx)
 
 

@@ -361,6 +361,7 @@ class WaterAirEnv(EnvBase):
             observation=observation,
             tx_position=state.tx_position.clone(),
             rx_position=state.rx_position.clone(),
+            flat_point=state.flat_point.clone(),
             divergence=state.divergence.clone(),
             tilt=self.tilt,
             base_tilt=self._base_tilt,

@@ -42,6 +42,7 @@ def make_specs(observation_size: int, dtype: torch.dtype) -> Specs:
         arrival=vector(3),
         tx_position=vector(3),
         rx_position=vector(3),
+        flat_point=vector(3),
         divergence=Unbounded(shape=(), dtype=torch.float64),
         tilt=vector(4),
         base_tilt=vector(4),
