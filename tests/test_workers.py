@@ -34,6 +34,12 @@ def test_workers_auto_takes_a_process_per_cpu_up_to_one_a_batch_and_one_on_a_gpu
     assert line.startswith(f"{workers} process{'es' if workers > 1 else ''} of {threads} torch thread"), line
 
 
+def test_a_daemonic_process_evaluates_in_itself(monkeypatch):
+    """A pool's worker (a launcher's, say) may start no processes of its own: one process, whatever the setting."""
+    monkeypatch.setattr(multiprocessing.current_process(), "daemon", True, raising=False)
+    assert choose_workers(4, 7, "cpu", {}, 16)[:2] == (1, 15)
+
+
 def test_workers_out_of_range_is_refused_in_one_line_before_any_work():
     expected = "workers = 0 is not allowed; choose auto or an integer in [1, 4096]"
     assert rejection("evaluate.py", ["workers=0"]) == f"error: {expected}"

@@ -57,7 +57,8 @@ def choose_workers(
 
     ``auto`` takes one process on a GPU; on the CPU, as many as there are CPUs (``OMP_NUM_THREADS``, a Slurm
     allocation, else this process's affinity), at most one a batch. The CPUs are shared out between the
-    processes; one process runs on ``threads: auto``'s count (:func:`waterair.core.threads.choose_threads`).
+    processes; one process (also any count in a daemonic process, which may start none) runs on
+    ``threads: auto``'s count (:func:`waterair.core.threads.choose_threads`).
     """
     setting = check_threads(setting, "workers")
     affinity = len(os.sched_getaffinity(0)) if affinity is None else affinity
@@ -67,6 +68,8 @@ def choose_workers(
         workers = 1 if torch.device(device).type != "cpu" else min(batches, cpus)
     else:
         workers = min(int(setting), batches)
+    if multiprocessing.current_process().daemon:  # a pool's worker (a launcher's) may start no processes
+        workers = 1
     if workers <= 1:
         threads, why = choose_threads(AUTO, environ, affinity)
         return 1, threads, f"1 process of {threads} torch thread{'s' if threads > 1 else ''} ({why})"
