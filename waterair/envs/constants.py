@@ -105,10 +105,13 @@ class StepConstants:
         return replace(self, optics=optics, channel=replace(self.channel, optics=optics), sensor=sensor)
 
     def replica_of_rows(self, like: torch.Tensor) -> torch.Tensor:
-        """The replica of each row ``[B]`` (int64) of a whole batch shaped as ``like`` ``[B, ...]``: replica k's rows
-        are [k·n, (k+1)·n)."""
-        rows = like.shape[0]
-        return torch.arange(rows, device=like.device) // (rows // self.replicas)
+        """The replica of each row ``[B]`` (int64) of a whole batch shaped as ``like`` ``[B, ...]``."""
+        return self.replica_of(torch.arange(like.shape[0], device=like.device), like.shape[0])
+
+    def replica_of(self, rows: torch.Tensor, batch: int) -> torch.Tensor:
+        """The replica of each of ``rows`` ``[n]`` (int64 indices into a batch of ``batch`` rows): replica k's rows
+        are [k·m, (k+1)·m), m = ``batch`` / replicas."""
+        return rows // (batch // self.replicas)
 
     def traced(self, device: torch.device, dtype: torch.dtype) -> StepConstants:
         """These constants as the compiled step takes them: the numbers that differ between an evaluation's

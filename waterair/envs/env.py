@@ -300,7 +300,7 @@ class WaterAirEnv(EnvBase):
         offset, azimuth = offset[copy.cpu()], None if azimuth is None else azimuth[copy.cpu()]
         tx, rx = (v.to(self.device, dtype) for v in self.link.positions_for(offset, azimuth))
         divergence = draws.divergence(config, distinct, self._generator)[copy.cpu()].to(self.device)
-        constants = self.constants.for_links(divergence, rows // (config.num_envs // config.replicas))
+        constants = self.constants.for_links(divergence, self.constants.replica_of(rows, config.num_envs))
         reference = self.channel.reference_gain(tx.double(), rx.double()).to(dtype)
         prepared = constants.channel.prepare(tx, rx, self.surface.unresolved[rows])
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)

@@ -196,7 +196,7 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
     if compile_kernel == "auto":  # each group compiles when its own frames repay its graphs (evaluation/compiling.py)
         per_policy = sum(len(s.points) * s.realisations * s.steps * max(1, len(s.divergences)) for s in scenarios)
         groups = [(compiled_group(config, len(members) * per_policy)[0], members) for config, members in groups]
-    batches = sum(max(1, len(batch[0].divergences)) for batch in _batches(scenarios))
+    batches = len(_batches_at_divergences(scenarios))
     workers, threads, processes = choose_workers(cfg.get("workers", AUTO), batches, base.device)
     return EvaluationPlan(
         scenarios, bootstrap, base, link, baselines, list(policies), learned, together, groups, links,
@@ -240,19 +240,18 @@ def _run(plan: EvaluationPlan, result: Evaluation, progress) -> None:
     # Scenarios with the same realisations, steps and seed run as one batch over the union of their
     # points; within it, every group of policies sharing an interface runs as replicas of one env.
     batches, collected = [], []
-    for scenarios in _batches(plan.scenarios):
+    for scenarios, divergence in _batches_at_divergences(plan.scenarios):
         points = list(dict.fromkeys(p for s in scenarios for p in s.points))
         first = scenarios[0]
+        at = f" at {divergence * 1e3:g} mrad" if divergence is not None else ""
         names = "+".join(s.name for s in scenarios)
-        for divergence in first.divergences or (None,):  # S5: every point at each divergence
-            at = f" at {divergence * 1e3:g} mrad" if divergence is not None else ""
-            what = f"{names}{at} ({len(points)} points × {first.realisations} seas × {first.steps} steps)"
-            groups = [
-                (at_divergence(env_config, divergence), members)
-                for env_config, members in _acting(plan, divergence or plan.env.optics.divergence)
-            ]
-            batches.append(Batch(what, groups, points, first.realisations, first.steps, first.seed))
-            collected.append((scenarios, points, divergence))
+        what = f"{names}{at} ({len(points)} points × {first.realisations} seas × {first.steps} steps)"
+        groups = [
+            (at_divergence(env_config, divergence), members)
+            for env_config, members in _acting(plan, divergence or plan.env.optics.divergence)
+        ]
+        batches.append(Batch(what, groups, points, first.realisations, first.steps, first.seed))
+        collected.append((scenarios, points, divergence))
     for runs, (scenarios, points, divergence) in zip(
         run_batches(batches, plan.workers, plan.threads, progress), collected, strict=True
     ):
@@ -272,6 +271,11 @@ def _acting(plan: EvaluationPlan, divergence: float) -> list[tuple]:
         if kept:
             groups.append((side_by_side(env_config, kept), kept))
     return groups
+
+
+def _batches_at_divergences(scenarios: Sequence[Scenario]) -> list[tuple[list[Scenario], float | None]]:
+    """Each batch of :func:`_batches` at each of its divergences (S5: every point at each; else None, the env's)."""
+    return [(batch, divergence) for batch in _batches(scenarios) for divergence in batch[0].divergences or (None,)]
 
 
 def _batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
