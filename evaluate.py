@@ -7,7 +7,11 @@ Writes metrics.json, metrics.csv, the figures and report.md into the Hydra run d
 is checked before Hydra creates that directory.
 """
 
+import gc
 import sys
+
+if __name__ == "__main__":
+    gc.disable()  # until the imports are done (waterair.core.process)
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -15,6 +19,7 @@ from omegaconf import DictConfig
 
 from waterair.cli import evaluation
 from waterair.cli.preflight import preflight
+from waterair.core.process import imports_done
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="evaluate")
@@ -23,5 +28,6 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
+    imports_done()
     preflight("evaluate", sys.argv[1:], evaluation.check)
     main()

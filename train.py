@@ -5,7 +5,11 @@ Examples: ``python train.py env.sea.wind=8 agent=td3``, ``python train.py resume
 The whole command line is checked before Hydra creates the run directory.
 """
 
+import gc
 import sys
+
+if __name__ == "__main__":
+    gc.disable()  # until the imports are done (waterair.core.process)
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -14,6 +18,7 @@ from omegaconf import DictConfig
 
 from waterair.cli import training
 from waterair.cli.preflight import preflight
+from waterair.core.process import imports_done
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="config")
@@ -24,5 +29,6 @@ def main(cfg: DictConfig) -> float:
 
 
 if __name__ == "__main__":
+    imports_done()
     preflight("config", sys.argv[1:], training.check)
     main()

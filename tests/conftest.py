@@ -1,5 +1,6 @@
 """Shared fixtures and helpers: the default geometry as tensors, Hydra configs composed from conf/."""
 
+import gc
 import os
 import platform
 from pathlib import Path
@@ -35,6 +36,12 @@ os.environ["TORCHINDUCTOR_COMPILE_THREADS"] = "1"
 
 ROOT = Path(__file__).resolve().parents[1]
 """The repository root (where train.py, evaluate.py and conf/ live)."""
+
+
+def pytest_collection_finish(session):
+    """Every test module is imported: the objects of the modules, torch's the most, are left out of the garbage
+    collector's full walks from here on, the last one at the worker's exit included (waterair/core/process.py)."""
+    gc.freeze()
 
 
 def pytest_collection_modifyitems(items):
