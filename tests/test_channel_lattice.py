@@ -126,13 +126,13 @@ def test_across_cells_is_the_change_between_neighbours_one_sided_at_the_edge():
 @pytest.mark.slow
 def test_straight_facing_holds_against_the_local_estimate_with_the_field_of_view_averaged_over_each_cell():
     """Both ends vertical: the receiver's field-of-view edge cuts through the light. 8 ocean seas at 20 m/s (the
-    wind where the edge cut deepest; every wind is measured in docs/model.md §4.3), one step, float64, 10⁴ rays:
-    within 10 % rms per link (the reference's noise taken out) with the field of view averaged over each node's
-    cell; as rays, the edge's first-order error is twice that."""
+    wind where the edge cut deepest; every wind is measured in docs/model.md §4.3), one step, float64, 5,000 rays
+    (the reference's noise 5 % rms, taken out): within 10 % rms per link with the field of view averaged over each
+    node's cell (2 %); as rays, the edge's first-order error (16 %) is more than twice that."""
     surface, (tx, rx) = ocean(20.0, 29), ends(0.1, SEAS)
     model, t = TwoScale(OPTICS), 10.0
     calm = flat_sea_point(tx, rx, OPTICS.n_water, OPTICS.n_air)
-    reference = LocalEstimate(OPTICS, rays=10_000, points=1, proposal_beams=BEAMS).estimate(
+    reference = LocalEstimate(OPTICS, rays=5_000, points=1, proposal_beams=BEAMS).estimate(
         surface.harmonics, surface.unresolved, LinkEnds(tx, rx, calm), t, torch.Generator().manual_seed(7)
     )
     up = torch.zeros_like(tx)
