@@ -1,6 +1,9 @@
 """Shared fixtures and helpers: the default geometry as tensors, Hydra configs composed from conf/."""
 
 import gc
+
+gc.disable()  # until the tests are collected (pytest_runtestloop, below): imports and collection 2 s shorter
+
 import os
 import platform
 from pathlib import Path
@@ -10,6 +13,7 @@ import torch
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
+from waterair.core.process import imports_done
 from waterair.envs.config import EnvConfig
 from waterair.physics.channel import LinkGeometry
 from waterair.physics.surface import WaveSurface
@@ -38,10 +42,12 @@ ROOT = Path(__file__).resolve().parents[1]
 """The repository root (where train.py, evaluate.py and conf/ live)."""
 
 
-def pytest_collection_finish(session):
-    """Every test module is imported: the objects of the modules, torch's the most, are left out of the garbage
-    collector's full walks from here on, the last one at the worker's exit included (waterair/core/process.py)."""
-    gc.freeze()
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtestloop(session):
+    """Before the first test (in a worker, its tests collected; in ``-n``'s controlling process, before it hands
+    them out): what is alive is kept out of the garbage collector's walks and the collector is on again, as an
+    entry point does once its imports are done (waterair/core/process.py). The tests run as a user's code runs."""
+    imports_done()
 
 
 def pytest_collection_modifyitems(items):

@@ -26,3 +26,7 @@ def test_an_entry_point_imported_as_a_module_leaves_the_collector_as_it_was(scri
     frozen = gc.get_freeze_count()
     runpy.run_path(str(ROOT / script), run_name="imported")
     assert gc.isenabled() and gc.get_freeze_count() <= frozen  # frozen objects may die; none is added
+
+
+def test_the_tests_run_with_the_collector_on_and_the_collected_modules_frozen():
+    assert gc.isenabled() and gc.get_freeze_count() > 100_000
