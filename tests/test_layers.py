@@ -11,6 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from conftest import ROOT
 
 PACKAGE = ROOT / "waterair"
@@ -191,15 +192,6 @@ def test_function_level_imports_count(tmp_path):
     assert any("higher layer" in p for p in layering_violations(imports))
 
 
-def test_the_physics_api_imports_no_rl_or_plotting_stack():
-    """``import waterair.physics`` (which imports the package ``waterair`` first) loads none of the RL, config or
-    plotting stacks."""
-    heavy = ("torchrl", "hydra", "omegaconf", "tensorboard", "matplotlib")
-    code = f"import sys, waterair.physics; print(sorted({{m.split('.')[0] for m in sys.modules}} & set({heavy!r})))"
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert done.stdout.strip() == "[]"
-
-
 def test_no_module_is_much_over_400_lines():
     long = {str(p.relative_to(ROOT)): n for p in SOURCES if (n := len(p.read_text().splitlines())) > MAX_LINES}
     assert long == {}
@@ -240,12 +232,28 @@ def test_a_long_signature_is_found(tmp_path):
     assert long_signatures([module], root=tmp_path) == {"wide.py:5 f": 10}
 
 
-def test_the_readme_tour_runs_as_written():
+HEAVY = ("torchrl", "hydra", "omegaconf", "tensorboard", "matplotlib")
+"""The RL, config and plotting stacks, which the physics API must not load."""
+
+
+@pytest.fixture(scope="module")
+def tour() -> subprocess.CompletedProcess:
+    """README's tour (``from waterair import ...``: the package and its physics) run as written in a process of
+    its own, which then prints, as its last line, which of :data:`HEAVY` it loaded."""
     readme = (ROOT / "README.md").read_text()
-    tour = readme.split("## A short tour", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
-    done = subprocess.run([sys.executable, "-c", tour], capture_output=True, text=True, cwd=ROOT, timeout=120)
-    assert done.returncode == 0, done.stderr[-2000:]
-    printed = dict(line.split(" ", 1) for line in done.stdout.strip().splitlines())
+    code = readme.split("## A short tour", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    code += f"\nimport sys\nprint(sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r})))\n"
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
+
+
+def test_the_physics_api_imports_no_rl_or_plotting_stack(tour):
+    assert tour.returncode == 0, tour.stderr[-2000:]
+    assert tour.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_the_readme_tour_runs_as_written(tour):
+    assert tour.returncode == 0, tour.stderr[-2000:]
+    printed = dict(line.split(" ", 1) for line in tour.stdout.strip().splitlines()[:-1])
     intensity = {name: float(value.removeprefix("tensor(").rstrip(")")) for name, value in printed.items()}
     assert 0.8 < intensity["single_path"] < 1.2  # aligned along the exact path: about the calm-sea gain
     # the full channel on the measured-slope sea at 12 m/s: the unresolved slopes spread the beam after the
