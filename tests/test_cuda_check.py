@@ -2,9 +2,9 @@
 apart from rounding, and its refusal where there is no CUDA device. The GPU parts run where there is one."""
 
 import importlib.util
-import subprocess
 import sys
 
+import pytest
 import torch
 from conftest import ROOT
 
@@ -36,16 +36,15 @@ def test_a_link_is_apart_when_an_output_differs_beyond_rounding_and_only_that_li
     assert check.links_apart(got, want, steps, batch).nonzero().flatten().tolist() == [5]
 
 
-def test_without_a_cuda_device_it_says_so_in_one_line_and_exits_1(tmp_path):
-    if torch.cuda.is_available():  # there the script runs; here the refusal is what a CPU machine gets
-        code = "import torch; torch.cuda.is_available = lambda: False; import runpy, sys; "
-    else:
-        code = "import runpy, sys; "
+def test_without_a_cuda_device_it_says_so_in_one_line_and_exits_1(tmp_path, monkeypatch, capsys):
+    check = load_script()
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)  # where there is a GPU the script runs
     out = tmp_path / "out"
-    code += f"sys.argv = ['cuda_check', '--out', {str(out)!r}]; runpy.run_path({str(SCRIPT)!r}, run_name='__main__')"
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
-    assert done.returncode == 1
-    assert done.stderr.strip().splitlines() == [
+    monkeypatch.setattr(sys, "argv", ["cuda_check", "--out", str(out)])
+    with pytest.raises(SystemExit) as exit_:
+        check.main()
+    assert exit_.value.code == 1
+    assert capsys.readouterr().err.strip().splitlines() == [
         "error: no CUDA device here (torch.cuda.is_available() is False); --device cpu: a dry run"
     ]
     assert not out.exists()  # nothing written before the refusal
