@@ -181,8 +181,10 @@ def test_a_sum_over_nodes_of_vectors_shares_its_rows_between_threads_not_each_ro
 
     def thread_teams(depth) -> int:
         monkeypatch.setattr(cpp.LoopNest, "max_parallel_depth", depth)
-        # vector loops (the tests' scalar ones never meet the fault), two threads, compiled afresh
-        with config.patch({"cpp.simdlen": None, "cpp.threads": 2, "fx_graph_cache": False}), fresh_cache():
+        # vector loops (the tests' scalar ones never meet the fault), two threads, compiled afresh; without a
+        # precompiled header, which vector flags would make another one to build for two compiles (4 s)
+        patch = {"cpp.simdlen": None, "cpp.threads": 2, "fx_graph_cache": False, "cpp_cache_precompile_headers": False}
+        with config.patch(patch), fresh_cache():
             torch._dynamo.reset()
             values, code = run_and_get_cpp_code(torch.compile(sums), weight, vectors)
         torch.testing.assert_close(values, sums(weight, vectors))
