@@ -1,6 +1,6 @@
 """A process of ours once its modules are imported: their objects kept out of Python's cyclic garbage collector.
 
-Importing torch, tensordict (which imports torch's compiler) and the rest creates about 700,000 objects that
+Importing torch, tensordict (which imports torch's compiler) and the rest creates about 600,000 objects that
 live as long as the process. Python's collector walks all of them in every full collection, several times
 while they are imported and once more as the interpreter exits: 0.6 s of a refused ``train.py``'s 3.6 and
 0.65 s of every process's exit (docs/benchmarks.md, "Tests"). The entry points turn the collector off
