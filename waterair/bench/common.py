@@ -1,4 +1,4 @@
-"""What every benchmark shares: a median timer, the sin+cos floor and where the numbers were measured."""
+"""What every benchmark shares: a median timer, the sin+cos floors and where the numbers were measured."""
 
 from __future__ import annotations
 
@@ -28,6 +28,17 @@ def sincos_floor(batch: int, harmonics: int, repeats: int, device: torch.device,
     """Seconds for one ``sin`` and one ``cos`` over a ``[batch, harmonics]`` tensor."""
     x = torch.rand(batch, harmonics, device=device, dtype=dtype) * 100.0
     return timed(lambda: (torch.sin(x), torch.cos(x)), repeats, device)
+
+
+LATTICE_FLOOR_SHAPE = (1024, 2048)
+"""The tensor the lattice floor's sin+cos is timed on (:func:`sincos_per_element`)."""
+
+
+def sincos_per_element(repeats: int, device: torch.device, dtype: torch.dtype) -> float:
+    """Seconds per element of one ``sin`` and one ``cos``, timed over a :data:`LATTICE_FLOOR_SHAPE` tensor: the
+    unit of the full channel's lattice floor (``waterair.bench.env.lattice_floor``)."""
+    rows, columns = LATTICE_FLOOR_SHAPE
+    return sincos_floor(rows, columns, repeats, device, dtype) / (rows * columns)
 
 
 def machine(device: torch.device, dtype: torch.dtype) -> dict:

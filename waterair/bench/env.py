@@ -16,15 +16,20 @@ import time
 
 import torch
 
-from waterair.bench.common import machine, sincos_floor
+from waterair.bench.common import machine, sincos_floor, sincos_per_element
 from waterair.core.devices import resolve_device
 from waterair.envs.env import WaterAirEnv
+from waterair.physics.channel import FullChannel
 
 SECONDS_PER_MEASUREMENT = 2.0
 """Each timing runs about this long (at least 5 steps)."""
 SAMPLED_STEPS = 20
 """Steps over which the path solve's convergence is counted (outside the timed loop)."""
 
+
+LATTICES_PER_STEP = 2
+"""Lattices of the full channel a link-step evaluates: the bound's around the tracked point and the beam's
+(``TwoScale.light`` given the transmitter's pointing; docs/model.md §4.3)."""
 
 SEAS = {"paper": {"sea": {"spectrum": "jonswap"}}, "ocean": {"sea": {"spectrum": "elfouhaily", "n_dir": 16}}}
 """The seas of ``env/spectrum=jonswap|elfouhaily`` (conf/env/spectrum), by short names."""
@@ -83,6 +88,11 @@ def worker(
     peak_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - baseline_kb) / 1024
     if env.device.type == "cuda":
         peak_mb = torch.cuda.max_memory_allocated() / 2**20
+    lattice = {}
+    if isinstance(env.config.channel, FullChannel):
+        per_element = sincos_per_element(5, env.device, env.float_dtype)
+        lattice["lattice_floor_s"] = lattice_floor(per_element, batch, env.config.channel, env.surface.num_harmonics)
+        lattice["lattice_floor_ratio"] = step_s / lattice["lattice_floor_s"]
     return {
         "batch": batch,
         "solver": solver,
@@ -97,7 +107,14 @@ def worker(
         "floor_ratio": step_s / (evaluations * floor),
         "first_step_s": first_step_s,
         "peak_memory_mb": peak_mb,
+        **lattice,
     }
+
+
+def lattice_floor(per_element: float, batch: int, channel: FullChannel, harmonics: int) -> float:
+    """Seconds of the naive floor of a full-channel step: one sin and one cos (``per_element`` s) per link, node
+    of each of its :data:`LATTICES_PER_STEP` lattices and harmonic."""
+    return per_element * batch * LATTICES_PER_STEP * channel.nodes**2 * harmonics
 
 
 def solver_counts(env: WaterAirEnv, td, steps: int) -> dict:
@@ -209,9 +226,10 @@ def bench_env(sizes, centroid_sizes, compile_kernel: bool, device: str, dtype: s
 
 ENV_HEADER = (
     "| B | solver / channel, sea | env-steps/s (step loop) | env-steps/s (rollout) | evals/step | left to finish "
-    "| steps finishing | floor ratio | peak memory (MB) |\n"
-    "|---|---|---|---|---|---|---|---|---|"
+    "| steps finishing | floor ratio | lattice floor ratio | peak memory (MB) |\n"
+    "|---|---|---|---|---|---|---|---|---|---|"
 )
+"""The printed table's head; the lattice floor ratio (step / :func:`lattice_floor`) is the full channel's."""
 
 
 def env_row(r: dict) -> str:
@@ -221,9 +239,10 @@ def env_row(r: dict) -> str:
         if "unconverged_fraction" in r
         else "| – | – | – | – "
     )
+    lattice = f"{r['lattice_floor_ratio']:.2f}" if "lattice_floor_ratio" in r else "–"
     return (
         f"| {r['batch']} | {_label(r)} | {r['env_steps_per_s']:,.0f} | {r['rollout_env_steps_per_s']:,.0f} "
-        f"{solve}| {r['peak_memory_mb']:.0f} |"
+        f"{solve}| {lattice} | {r['peak_memory_mb']:.0f} |"
     )
 
 

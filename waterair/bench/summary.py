@@ -43,6 +43,9 @@ def summary_lines(folder: Path) -> list[str]:
             c = env["compile"]
             cold_warm = f"{c['cold_s']:.0f} / {c['warm_s']:.0f}"
             row("compile, cold / warm cache (s)", cold_warm, "paid once per machine", None)
+    channel = _load(folder, "channel")
+    if channel is not None:
+        _channel_rows(channel, row)
     training = _load(folder, "training")
     if training is not None:
         update = training["update"]
@@ -83,6 +86,21 @@ def summary_lines(folder: Path) -> list[str]:
             else:
                 row(name, f"{bound}{ratio:.1f}", "≥ 10, compiles included", ratio >= 10)
     return ["| quantity | measured | target | met |", "|---|---|---|---|", *rows]
+
+
+def _channel_rows(channel: dict, row) -> None:
+    """The defaults' full channel (the measured-slope sea, the default lattice): its step against the lattice
+    floor at B = 1024 (compiled ≤ 0.35, eager ≤ 1.5) and, compiled, B = 16's rate against B = 1024's."""
+    case = ("full", "ocean", "")
+    defaults = {r["batch"]: r for r in channel["rows"] if (r["channel"], r["sea"], r.get("lattice", "")) == case}
+    compiled = channel["compiled_kernel"]
+    if "lattice_floor_ratio" in defaults.get(1024, {}):
+        ratio, target = defaults[1024]["lattice_floor_ratio"], 0.35 if compiled else 1.5
+        name = f"full channel step / lattice sin+cos floor, B = 1024, {'compiled' if compiled else 'eager'}"
+        row(name, f"{ratio:.2f}", f"≤ {target}", ratio <= target)
+    if compiled and 16 in defaults and 1024 in defaults:
+        ratio = defaults[16]["env_steps_per_s"] / defaults[1024]["env_steps_per_s"]
+        row("full channel env-steps/s, B = 16 / B = 1024, compiled", f"{ratio:.2f}", "≥ 0.4", ratio >= 0.4)
 
 
 def main(folder: Path) -> str:
