@@ -10,11 +10,12 @@ import torch
 from waterair.bench import env as bench_env
 from waterair.bench.summary import summary_lines
 from waterair.envs.env import WaterAirEnv
-from waterair.physics.channel import lattice
+from waterair.physics.channel import TwoScale, lattice
 
 
 def test_a_full_channel_step_evaluates_the_lattices_the_floor_counts(monkeypatch):
     env = WaterAirEnv(num_envs=3, seed=0, channel={"name": "full", "nodes": 5}, compile_kernel=False)
+    assert isinstance(env.channel, TwoScale)  # the defaults' sea: the full channel on lattices
     td = env.reset().set("action", torch.zeros(3, 4))
     evaluated = []
     real = lattice.two_scale_light
@@ -27,7 +28,7 @@ def test_a_full_channel_step_evaluates_the_lattices_the_floor_counts(monkeypatch
     env.step(td)
     assert sum(evaluated) == bench_env.LATTICES_PER_STEP * 5**2 * 3
     per_element = 1e-9
-    floor = bench_env.lattice_floor(per_element, 3, env.config.channel, env.surface.num_harmonics)
+    floor = bench_env.lattice_floor(per_element, 3, env.channel.nodes, env.surface.num_harmonics)
     assert floor == pytest.approx(per_element * sum(evaluated) * env.surface.num_harmonics, rel=1e-12)
 
 
