@@ -68,6 +68,7 @@ figures: $(STAMP)
 bench: $(STAMP)
 	$(PYTHON) -m waterair.bench physics --compile --out $(OUT)/bench/physics.json
 	$(PYTHON) -m waterair.bench env --compile --out $(OUT)/bench/env.json
+	$(PYTHON) -m waterair.bench channel --compile --out $(OUT)/bench/channel.json
 	$(PYTHON) -m waterair.bench training --out $(OUT)/bench/training.json
 	$(PYTHON) -m waterair.bench evaluate --compile --out $(OUT)/bench/evaluate.json
 	$(PYTHON) -m waterair.bench summary $(OUT)/bench
