@@ -37,11 +37,15 @@ def replaced_source_digest() -> str:
 
 
 def torch_compile(function, **options):
-    """``torch.compile(function, **options)`` with the code generator fixed first (:func:`fix_parallel_depth`):
+    """``torch.compile(function, **options)`` with the code generator fixed first (:func:`fix_parallel_depth`) and
+    the process's freed memory kept for the graph's buffers (:func:`~waterair.core.process.keep_freed_memory`):
     how every compile site of the package compiles."""
     import torch
 
+    from waterair.core.process import keep_freed_memory
+
     fix_parallel_depth()
+    keep_freed_memory()
     return torch.compile(function, **options)
 
 
