@@ -4,6 +4,7 @@ a graph per batch, a step that runs eagerly after a wall of warnings). Traced wi
 or AOT autograd's eager one; one test compiles two small kernels to C++ (inductor's loops,
 :mod:`waterair.core.inductor`)."""
 
+import re
 from collections.abc import Callable
 
 import pytest
@@ -17,6 +18,7 @@ from waterair.envs.env import WaterAirEnv
 from waterair.envs.sensors import TRACED_SETTINGS
 from waterair.envs.stepper import BATCH_SOURCES, MEMO_TYPES, RECOMPILE_LIMIT, varying_environments
 from waterair.physics.optics import traced
+from waterair.physics.surface import lattice_harmonic_sums
 
 
 def frames(function, calls) -> int:
@@ -195,3 +197,34 @@ def test_a_sum_over_nodes_of_vectors_shares_its_rows_between_threads_not_each_ro
         "waterair.core.inductor's fix is not needed any more"
     )
     assert thread_teams(fixed) == 1, f"the fixed {inductor.REPLACED} still opens a thread team per row"
+
+
+@pytest.mark.usefixtures("inductor")
+def test_the_lattices_factors_are_written_once_and_their_products_summed_without_a_sine():
+    """Compiled on a CPU, the lattice's sums read their per-axis factors from memory: inductor writes an extern
+    kernel's input (``torch.ops.waterair.written``) before any other consumer reads it. Left inlined, the factors'
+    sines and cosines are recomputed for every node and harmonic, slower than the direct sums. Values against the
+    float64 sums written in tests/test_surface.py, every order-2 term, to 1e-10 of their scales."""
+    from torch._inductor.utils import run_and_get_code
+
+    from tests.test_surface import direct_sums, random_lattices, surface64
+
+    surface = surface64(batch=3, seed=4, spectrum="elfouhaily", n_dir=8)
+    centre, basis, grid, time, xy = random_lattices(3, 5, seed=4)
+    torch._dynamo.reset()
+    compiled = inductor.torch_compile(lattice_harmonic_sums, dynamic=True)
+    got, codes = run_and_get_code(compiled, surface.harmonics, centre, basis, grid, time, 2)
+    expected = direct_sums(surface.harmonics, xy[..., 0], xy[..., 1], time)
+    k = torch.sqrt(surface.kx**2 + surface.ky**2)
+    for value, want, power in zip(got, expected, (0, 1, 1, 2, 2, 2), strict=True):
+        scale = (surface.amplitude * k**power).sum(-1, keepdim=True)
+        assert ((value - want).abs() / scale).max().item() < 1e-10
+    code = "\n".join(codes)
+    assert "torch.ops.waterair.written" in code, "the compiled lattice sums no longer write their factors first"
+    nests = re.split(r"for\(int64_t x0=", code)  # each loop nest of inductor's C++ kernels opens with its x0 loop
+    summing = [nest for nest in nests if "tmp_acc" in nest]
+    assert summing and any(re.search(r"\b(sin|cos)\(|\.(sin|cos)\(\)", nest) for nest in nests)
+    assert not any(re.search(r"\b(sin|cos)\(|\.(sin|cos)\(\)", nest) for nest in summing), (
+        "inductor recomputes the lattice's factors (sines, cosines) in the loop that sums their products: an "
+        "extern kernel's input (torch.ops.waterair.written) is no longer written to memory before its other reads"
+    )

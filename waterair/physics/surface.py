@@ -113,18 +113,26 @@ def lattice_harmonic_sums(sea: Harmonics, centre, basis, grid, t, order: int):
 
     The phase is affine in the node: ψ(i, j) = ψ_c − g_i α − g_j β with ψ_c the centre's phase and α, β the
     wavenumber projected on the basis' columns, so that a e^{iψ(i, j)} = (a e^{iψ_c}) e^{−i g_i α} e^{−i g_j β}:
-    1 + 2n complex exponentials per harmonic instead of n², and each sum over harmonics (η, the slopes and the
-    curvatures, each with its wavenumber factor) is a matrix product over the harmonics of the i-factors
-    ``[n, K]`` and the j-factors ``[K, n]``, in real arithmetic (docs/model.md §4.3). Eager PyTorch runs it in
-    chunks of seas, as :func:`harmonic_sums`.
+    1 + 2n complex exponentials per harmonic instead of n² (docs/model.md §4.3). Eager PyTorch sums over the
+    harmonics as a matrix product of the i-factors ``[n, K]`` and the j-factors ``[K, n]``, in real arithmetic and
+    in chunks of seas, as :func:`harmonic_sums`; compiled on a CPU, the factors are written once and inductor sums
+    their products in its own loop (:func:`_compiled_lattice_sums`); compiled on a GPU, one sine and cosine per node
+    and harmonic (:func:`harmonic_sums`).
     """
+    if torch.compiler.is_compiling():
+        if sea.omega.device.type == "cpu":
+            return _compiled_lattice_sums((*sea, centre, basis, t), grid, order)
+        z = torch.stack(torch.meshgrid(grid, grid, indexing="ij"), dim=-1).reshape(-1, 2)
+        xy = centre.unsqueeze(1) + torch.einsum("bij,nj->bni", basis, z)
+        return harmonic_sums(sea, xy[..., 0], xy[..., 1], t, order)
     rows = max(1, EAGER_CHUNK_ELEMENTS // (grid.shape[0] * sea.omega.shape[-1]))
     inputs = (*sea, centre, basis, t)
     return _in_chunks(functools.partial(_lattice_sums, grid=grid, order=order), inputs, rows)
 
 
-def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int):
-    """:func:`lattice_harmonic_sums` of ``inputs`` (the components, ``centre``, ``basis`` and ``t``) in one pass."""
+def _node_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor):
+    """The lattice's per-axis factors, each ``[B, n, K]``: the i-factors a e^{iψ_c} e^{−i g_i α} (real, imaginary)
+    and the j-factors e^{−i g_j β} = cos − i sin (cos, sin)."""
     omega, phase, kx, ky, amplitude, centre, basis, t = inputs
     psi = omega * t.unsqueeze(-1) + phase - kx * centre[:, :1] - ky * centre[:, 1:]
     c_re, c_im = (amplitude * torch.cos(psi)).unsqueeze(1), (amplitude * torch.sin(psi)).unsqueeze(1)  # a e^{iψ_c}
@@ -132,9 +140,15 @@ def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int
     projected = kx.unsqueeze(1) * basis[:, 0, :, None] + ky.unsqueeze(1) * basis[:, 1, :, None]
     angle = projected.unsqueeze(2) * grid[:, None]
     cos, sin = torch.cos(angle), torch.sin(angle)
-    cos_a, sin_a, cos_b, sin_b = cos[:, 0], sin[:, 0], cos[:, 1], sin[:, 1]
-    # the i-factors a e^{iψ_c} e^{−i g_i α}, [real | imaginary] over the harmonics, [B, n, 2K]
-    rows = torch.cat((c_re * cos_a + c_im * sin_a, c_im * cos_a - c_re * sin_a), dim=-1)
+    cos_a, sin_a = cos[:, 0], sin[:, 0]
+    return c_re * cos_a + c_im * sin_a, c_im * cos_a - c_re * sin_a, cos[:, 1], sin[:, 1]
+
+
+def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int):
+    """:func:`lattice_harmonic_sums` of ``inputs`` (the components, ``centre``, ``basis`` and ``t``) in one pass."""
+    kx, ky = inputs[2], inputs[3]
+    rows_re, rows_im, cos_b, sin_b = _node_factors(inputs, grid)
+    rows = torch.cat((rows_re, rows_im), dim=-1)  # the i-factors, [real | imaginary] over the harmonics, [B, n, 2K]
     # the j-factors e^{−i g_j β} as the columns that, times [re | im], give the real part (m_re cos + m_im sin)
     # and the imaginary part (m_im cos − m_re sin) of the product, each weighted per harmonic by its sum's factor
     real, imaginary = torch.cat((cos_b, sin_b), dim=-1), torch.cat((-sin_b, cos_b), dim=-1)
@@ -150,6 +164,39 @@ def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int
     batch, n, terms = rows.shape[0], grid.shape[0], len(columns)
     sums = sums.reshape(batch, n, terms, n).transpose(1, 2).reshape(batch, terms, n * n)
     return tuple(sums.unbind(1))
+
+
+def _compiled_lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int):
+    """:func:`lattice_harmonic_sums` inside ``torch.compile`` on a CPU: the factors written to memory once (an extern
+    kernel reads them: :func:`written`), and each node's sums over the harmonics one reduction over their products.
+    Left to itself, inductor recomputes the factors' sines in every product, which is slower than the direct sums
+    (docs/benchmarks.md, "Lattice sums")."""
+    kx, ky = (v[:, None, None] for v in inputs[2:4])
+    factors = torch.stack(_node_factors(inputs, grid), dim=1)  # [B, 4, n, K]
+    zero = written(factors)
+    rows_re, rows_im, cos_b, sin_b = factors.unbind(1)
+    rows_re, rows_im, cos_b, sin_b = rows_re.unsqueeze(2), rows_im.unsqueeze(2), cos_b.unsqueeze(1), sin_b.unsqueeze(1)
+    # node (i, j): (m_re + i m_im)(cos − i sin) = (m_re cos + m_im sin) + i (m_im cos − m_re sin)
+    real = rows_re * cos_b + rows_im * sin_b  # [B, n (i), n (j), K]
+    sums = [real.sum(-1) + zero]
+    if order >= 1:
+        imaginary = rows_im * cos_b - rows_re * sin_b
+        sums += [(kx * imaginary).sum(-1), (ky * imaginary).sum(-1)]
+    if order == 2:
+        sums += [-(weight * real).sum(-1) for weight in (kx * kx, kx * ky, ky * ky)]
+    return tuple(v.flatten(1) for v in sums)
+
+
+@torch.library.custom_op("waterair::written", mutates_args=())
+def written(values: torch.Tensor) -> torch.Tensor:
+    """A zero (0-dim, ``values``' dtype) that reads ``values``: inside ``torch.compile``, an extern kernel's input,
+    which inductor writes to memory, so that the other consumers of ``values`` read it instead of recomputing it."""
+    return values.new_zeros(())
+
+
+@written.register_fake
+def _(values: torch.Tensor) -> torch.Tensor:
+    return values.new_empty(())
 
 
 @functools.cache
