@@ -145,23 +145,28 @@ def _node_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor):
 
 
 def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int):
-    """:func:`lattice_harmonic_sums` of ``inputs`` (the components, ``centre``, ``basis`` and ``t``) in one pass."""
-    kx, ky = inputs[2], inputs[3]
+    """:func:`lattice_harmonic_sums` of ``inputs`` (the components, ``centre``, ``basis`` and ``t``) in one pass, each
+    factor written where the matrix product reads it (no concatenation copies)."""
+    kx, ky = inputs[2].unsqueeze(1), inputs[3].unsqueeze(1)
     rows_re, rows_im, cos_b, sin_b = _node_factors(inputs, grid)
-    rows = torch.cat((rows_re, rows_im), dim=-1)  # the i-factors, [real | imaginary] over the harmonics, [B, n, 2K]
+    (batch, n, harmonics), terms = rows_re.shape, (1, 3, 6)[order]
+    rows = rows_re.new_empty(batch, n, 2 * harmonics)  # the i-factors, [real | imaginary] over the harmonics
+    rows[..., :harmonics], rows[..., harmonics:] = rows_re, rows_im
     # the j-factors e^{−i g_j β} as the columns that, times [re | im], give the real part (m_re cos + m_im sin)
-    # and the imaginary part (m_im cos − m_re sin) of the product, each weighted per harmonic by its sum's factor
-    real, imaginary = torch.cat((cos_b, sin_b), dim=-1), torch.cat((-sin_b, cos_b), dim=-1)
+    # and the imaginary part (m_im cos − m_re sin) of the product, each weighted per harmonic by its sum's factor:
     # η = Re Σ a e^{iψ}; η_x, η_y = Im Σ (kx, ky) a e^{iψ}; η_xx, η_xy, η_yy = −Re Σ (kx², kx ky, ky²) a e^{iψ}
-    columns = [real]
+    columns = rows_re.new_empty(batch, terms, n, 2 * harmonics)
+    columns[:, 0, :, :harmonics], columns[:, 0, :, harmonics:] = cos_b, sin_b
     if order >= 1:
-        columns.append(torch.cat((kx, kx), dim=-1).unsqueeze(1) * imaginary)
-        columns.append(torch.cat((ky, ky), dim=-1).unsqueeze(1) * imaginary)
+        minus_sin = -sin_b
+        for term, weight in ((1, kx), (2, ky)):
+            torch.mul(weight, minus_sin, out=columns[:, term, :, :harmonics])
+            torch.mul(weight, cos_b, out=columns[:, term, :, harmonics:])
     if order == 2:
-        for weight in (kx * kx, kx * ky, ky * ky):
-            columns.append(torch.cat((-weight, -weight), dim=-1).unsqueeze(1) * real)
-    sums = torch.bmm(rows, torch.cat(columns, dim=1).transpose(1, 2))  # [B, n (i), terms × n (j)]
-    batch, n, terms = rows.shape[0], grid.shape[0], len(columns)
+        for term, weight in ((3, kx * kx), (4, kx * ky), (5, ky * ky)):
+            torch.mul(-weight, cos_b, out=columns[:, term, :, :harmonics])
+            torch.mul(-weight, sin_b, out=columns[:, term, :, harmonics:])
+    sums = torch.bmm(rows, columns.reshape(batch, terms * n, 2 * harmonics).transpose(1, 2))  # [B, n (i), terms × n]
     sums = sums.reshape(batch, n, terms, n).transpose(1, 2).reshape(batch, terms, n * n)
     return tuple(sums.unbind(1))
 
