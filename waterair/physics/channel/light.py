@@ -221,15 +221,20 @@ def light_centroid(
 
 
 def _ascend(light: LightSamples, tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver, iterations: int):
-    """Alternating ascent of eq. (4.7) from (tx, rx); returns (gain, tx, rx)."""
-    for _ in range(iterations):
+    """Alternating ascent of eq. (4.7) from (tx, rx); returns (gain, tx, rx). Each transmitter direction's angles
+    to the samples and G_D are computed once, for the receiver's move after it and the transmitter's next."""
+
+    def departures(tx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         alpha_d = angle_between(tx.unsqueeze(1), light.departure)
-        g_d = departure_gain(alpha_d, optics.divergence, optics.wavelength)
+        return alpha_d, departure_gain(alpha_d, optics.divergence, optics.wavelength)
+
+    alpha_d, g_d = departures(tx)
+    for _ in range(iterations):
         share = light.weight * g_d * arrival_gains(light, rx, optics)
         tx = weighted_direction(share * torch.cos(alpha_d), light.departure, tx)
-        g_d = departure_gain(angle_between(tx.unsqueeze(1), light.departure), optics.divergence, optics.wavelength)
+        alpha_d, g_d = departures(tx)
         rx = weighted_direction(light.weight * g_d, -light.arrival, rx)
-    return received_gain(light, tx, rx, optics), tx, rx
+    return (light.weight * g_d * arrival_gains(light, rx, optics)).sum(-1), tx, rx  # G (eq. 4.7) at (tx, rx)
 
 
 def weighted_direction(weights: torch.Tensor, directions: torch.Tensor, fallback: torch.Tensor) -> torch.Tensor:
