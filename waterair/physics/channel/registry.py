@@ -63,7 +63,7 @@ class FullChannel(Channel):
     lattice nodes of half-width ``span`` standard deviations, in each of the two-scale model's two lattices."""
 
     name = "full"
-    compile_frames = MappingProxyType({"warm": 30_000, "cold": 40_000})  # about 100-130 s over 3.7 ms a frame
+    compile_frames = MappingProxyType({"warm": 25_000, "cold": 100_000})  # 13 s or 65 s over 0.63 ms a frame
     # a group's graphs: about 12 s to load or 100-220 s to compile, over 0.35 ms a frame (docs/benchmarks.md)
     evaluation_frames = MappingProxyType({"warm": 35_000, "cold": 500_000})
     nodes: int = LATTICE_NODES
