@@ -122,12 +122,18 @@ def lattice_harmonic_sums(sea: Harmonics, centre, basis, grid, t, order: int):
     if torch.compiler.is_compiling():
         if sea.omega.device.type == "cpu":
             return _compiled_lattice_sums((*sea, centre, basis, t), grid, order)
-        z = torch.stack(torch.meshgrid(grid, grid, indexing="ij"), dim=-1).reshape(-1, 2)
-        xy = centre.unsqueeze(1) + torch.einsum("bij,nj->bni", basis, z)
+        xy = lattice_nodes(centre, basis, grid)
         return harmonic_sums(sea, xy[..., 0], xy[..., 1], t, order)
     rows = max(1, EAGER_CHUNK_ELEMENTS // (grid.shape[0] * sea.omega.shape[-1]))
     inputs = (*sea, centre, basis, t)
     return _in_chunks(functools.partial(_lattice_sums, grid=grid, order=order), inputs, rows)
+
+
+def lattice_nodes(centre: torch.Tensor, basis: torch.Tensor, grid: torch.Tensor) -> torch.Tensor:
+    """The nodes ``centre + basis · (g_i, g_j)`` (m) of :func:`lattice_harmonic_sums`'s lattices, ``[B, n², 2]``, node
+    (i, j) at i n + j."""
+    z = torch.stack(torch.meshgrid(grid, grid, indexing="ij"), dim=-1).reshape(-1, 2)  # [n², 2]
+    return centre.unsqueeze(1) + torch.einsum("bij,nj->bni", basis, z)
 
 
 def _node_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor):

@@ -41,7 +41,7 @@ from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.channel.ray_tube import calm_sea_reference
 from waterair.physics.optics import beam_divergence, water_transmittance
 from waterair.physics.paths import PathSolution, flat_sea_point, near_calm_point
-from waterair.physics.surface import Harmonics, lattice_harmonic_sums
+from waterair.physics.surface import Harmonics, lattice_harmonic_sums, lattice_nodes
 
 LATTICE_NODES = 9
 """Nodes per axis of each lattice (2 n² surface evaluations per link with the beam's own): chosen with
@@ -259,8 +259,7 @@ def two_scale_light(
     batch, dtype = tx.shape[0], tx.dtype
     centre, basis, nodes, span = lattice
     grid = torch.linspace(-span, span, nodes, dtype=dtype, device=tx.device)
-    z = torch.stack(torch.meshgrid(grid, grid, indexing="ij"), dim=-1).reshape(-1, 2)  # [N, 2]
-    xy = centre.unsqueeze(1) + torch.einsum("bij,nj->bni", basis, z)
+    xy = lattice_nodes(centre, basis, grid)
     height, slope_x, slope_y = lattice_harmonic_sums(sea, centre, basis, grid, time, 1)
     point = torch.cat((xy, height.unsqueeze(-1)), dim=-1)
     d1, d2 = point - tx.unsqueeze(1), rx.unsqueeze(1) - point
