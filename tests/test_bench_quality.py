@@ -14,11 +14,11 @@ from conftest import ONE_PATH, TINY
 from waterair.bench import quality
 
 
-def test_our_time_is_every_training_loop_up_to_the_one_that_reached_without_the_evaluations(monkeypatch):
+def test_our_run_is_scored_at_each_checkpoint_and_ends_at_the_first_that_reaches_without_the_scorings(monkeypatch):
     from waterair.training import loop
 
     slowed = {"closing": 0, "scoring": 0}
-    scores = iter([0.5, 0.99])  # the first budget falls short of the target, the second reaches it
+    scores = iter([0.5, 0.99])  # the first checkpoint falls short of the target, the second reaches it
 
     def slower(name, function):  # the same function, 0.6 s later, counted
         return lambda *a, **k: slowed.update({name: slowed[name] + 1}) or time.sleep(0.6) or function(*a, **k)
@@ -26,13 +26,15 @@ def test_our_time_is_every_training_loop_up_to_the_one_that_reached_without_the_
     monkeypatch.setattr(loop, "final_evaluation", slower("closing", loop.final_evaluation))
     monkeypatch.setattr(quality, "score", slower("scoring", lambda cfg, policy: next(scores)))
     start = time.perf_counter()
-    record = quality.ours([400, 800], 0.9, [*ONE_PATH, *TINY])
+    record = quality.ours(2000, 400, 0.9, [*ONE_PATH, *TINY])  # five batches of 400 frames at most
     wall = time.perf_counter() - start
     first, second = record["runs"]
-    assert slowed == {"closing": 2, "scoring": 2} and (first["frames"], second["frames"]) == (400, 800)
-    # both loops (environment and updates, about a second each) are counted; the evaluations and scorings are not
-    assert record["seconds_to_target"] == pytest.approx(first["seconds"] + second["seconds"])
-    assert min(first["seconds"], second["seconds"]) > 0.2 and record["seconds_to_target"] < wall - 2.4
+    # scored at the first two checkpoints, then ended: a third scoring would have found no score left
+    assert slowed == {"closing": 1, "scoring": 2} and (first["frames"], second["frames"]) == (400, 800)
+    assert record["seconds_to_target"] == second["seconds"]
+    # the loop up to the second checkpoint (environment, updates, about a second each batch) is counted; the
+    # scorings and the closing evaluation (0.6 s each at least) are not
+    assert 0.2 < first["seconds"] < second["seconds"] < wall - 1.8
 
 
 def fake_runs(*seconds_and_ratios):
@@ -53,12 +55,15 @@ def test_sb3s_best_time_on_each_base_over_ours_and_a_lower_bound_where_none_reac
     def base_of(overrides) -> str:
         return "_flat_base" if tuple(overrides[: len(flat)]) == flat else ""
 
-    monkeypatch.setattr(quality, "ours", lambda frames, target, overrides: ours[base_of(overrides)])
+    def our_pipeline(frames, chunk, target, overrides):
+        return ours[base_of(overrides[1:] if overrides[0] == "agent=ddpg" else overrides)]
+
+    monkeypatch.setattr(quality, "ours", our_pipeline)
     monkeypatch.setattr(quality, "sb3", lambda name, *args: theirs[name, base_of(args[-1])])
-    record = quality.bench_quality([1600], [1600], 4800)
-    assert record["sb3_over_ours"] == pytest.approx(200.0 / 10.0)  # PPO's 200 s beat DDPG's 300 s
+    record = quality.bench_quality(1600, 1600, 4800)
+    assert record["sb3_over_ours"] == record["sb3_over_ours_ddpg"] == pytest.approx(200.0 / 10.0)  # PPO's 200 s
     assert record["sb3_flat_base_over_ours_flat_base_at_least"] == pytest.approx(500.0 / 40.0)
-    assert "sb3_flat_base_over_ours_flat_base" not in record
+    assert "sb3_flat_base_over_ours_flat_base" not in record and "sb3_over_ours_eager" not in record
     table = quality.quality_table(record)
     assert "| SB3's best seconds / ours_flat_base's to 0.95 | | at least 12.5 | |" in table
 
@@ -67,11 +72,13 @@ def test_the_summary_sets_the_flat_bases_ratio_against_its_target(tmp_path):
     from waterair.bench.summary import summary_lines
 
     record = {"target": 0.95, "sb3_flat_base_over_ours_flat_base": 12.0, "sb3_flat_base_over_ours_flat_base_eager": 3.0}
+    record["sb3_flat_base_over_ours_ddpg_flat_base"] = 4.0
     (tmp_path / "quality.json").write_text(json.dumps(record))
     rows = summary_lines(tmp_path)[2:]
     assert rows == [
         "| SB3's best seconds to 0.95 of the bound / ours_flat_base's | 12.0 | ≥ 10, compiles included | yes |",
         "| SB3's best seconds to 0.95 of the bound / ours_flat_base_eager's | 3.0 | (eager) | – |",
+        "| SB3's best seconds to 0.95 of the bound / ours_ddpg_flat_base's | 4.0 | ≥ 10, compiles included | no |",
     ]
     record = {"target": 0.95, "sb3_flat_base_over_ours_flat_base_at_least": 9.0}
     (tmp_path / "quality.json").write_text(json.dumps(record))

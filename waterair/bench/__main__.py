@@ -44,7 +44,7 @@ from waterair.bench.env import ENV_HEADER, bench_channels, bench_env
 from waterair.bench.evaluate import bench_evaluate, evaluate_table
 from waterair.bench.montecarlo import MONTECARLO_HEADER, bench_montecarlo, montecarlo_table
 from waterair.bench.physics import bench_physics, physics_table
-from waterair.bench.quality import bench_quality, quality_table
+from waterair.bench.quality import CHUNK, bench_quality, quality_table
 from waterair.bench.summary import main as summary
 from waterair.bench.training import bench_training, training_table
 from waterair.core.devices import resolve_device
@@ -111,10 +111,9 @@ def main(argv: list[str] | None = None) -> int:
         help="a train.py override for every run, SB3's included (repeatable), e.g. env/channel=single_path",
     )
     quality = sub.add_parser("quality", help="wall time to a greedy 0.95 of UB: ours vs Stable-Baselines3")
-    quality.add_argument("--budgets", type=int, nargs="+", default=[1600, 8000, 40000], help="our runs' frames")
-    quality.add_argument(
-        "--flat-budgets", type=int, nargs="+", default=[40000, 80000, 160000], help="frames, flat-Snell base runs"
-    )
+    quality.add_argument("--frames", type=int, default=40_000, help="frames of each of our runs at most")
+    quality.add_argument("--flat-frames", type=int, default=160_000, help="the same on the flat-Snell base")
+    quality.add_argument("--chunk", type=int, default=CHUNK, help="frames between two scorings of every pipeline")
     quality.add_argument("--sb3-frames", type=int, default=80_000, help="frames of each Stable-Baselines3 run at most")
     quality.add_argument("--eager", action="store_true", help="also our pipeline eager, on each base")
     quality.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
@@ -171,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
         print(training_table(record))
     elif args.suite == "quality":
         record = {"machine": machine(torch.device("cpu"), torch.float32)}
-        record.update(bench_quality(args.budgets, args.flat_budgets, args.sb3_frames, args.eager))
+        record.update(bench_quality(args.frames, args.flat_frames, args.sb3_frames, args.eager, args.chunk))
         print(quality_table(record))
     elif args.suite == "census":
         print(census_table({"rows": []}))

@@ -5,23 +5,23 @@ point (12 m/s, 10 % offset, the default 50 mrad beam) on the defaults: the measu
 both ends sensed (``env/observation=beacon``) through the realistic sensor, all measured in this one process,
 one after the other:
 
-* **ours**: ``train()`` with the defaults (PPO) at that one point, for growing budgets (``budgets`` frames,
-  each a fresh run until one reaches the target), the step and the update compiled. Its time is that of every
-  run up to the one that reached (environment construction, compiles and training, without the closing
-  evaluations): the runs share one process, so the compiles the first paid the later ones would pay again from
-  scratch, and the sum is the bound that counts them.
-  Its first policy is the zero residual, i.e. the beacon tracker, so a one-batch budget (1,600 frames) measures
-  how soon the pipeline stands where it starts;
-* **ours, flat-Snell base**: the same with residual actions on flat-sea Snell instead (``flat_budgets``), so
-  that the agent must learn the tracking itself;
-* **ours, eager**: both again with the step and the update eager (:data:`EAGER`), when asked;
+* **ours**: ``train()`` with the defaults (PPO) at that one point, one run of at most ``frames``, its greedy
+  policy scored at every checkpoint (each ``chunk`` frames) until one reaches the target, which ends the run
+  (``train``'s ``on_checkpoint``). Its time runs from the call to that checkpoint, less the scorings before it:
+  environment construction, compiles (each run's from an empty cache of its own) and training counted, the
+  scorings not. Its first policy is the zero
+  residual, i.e. the beacon tracker, so the first scoring measures how soon the pipeline stands where it starts;
+* **ours_ddpg**: the same with ``agent=ddpg`` (:data:`OURS`), Stable-Baselines3 DDPG's counterpart;
+* each again with residual actions on flat-sea Snell (``_flat_base``, ``flat_frames``), so that the agent must
+  learn the tracking itself, and with the step and the update eager (``_eager``, :data:`EAGER`) when asked;
 * **sb3_ddpg, sb3_ppo**: Stable-Baselines3 DDPG and PPO on our Gymnasium view with the same observation,
   sensor, residual actions, reward and networks, each with our ``agent=ddpg`` or ``agent=ppo`` settings
-  (:mod:`.sb3`), one link at a time, on each base; one run each, scored every :data:`SB3_CHUNK` frames until it
+  (:mod:`.sb3`), one link at a time, on each base; one run each, scored every ``chunk`` frames until it
   reaches the target or ``sb3_frames`` (its wall time includes model construction, not the scoring).
 
 Every greedy policy is scored with evaluation's own runner on the same 32 seas × 500 steps (evaluation seed
-12345, never a training seed). The ratios are Stable-Baselines3's best time to the target over ours, per base.
+12345, never a training seed), every pipeline at the same frames. The ratios are Stable-Baselines3's best time
+to the target over each of ours, per base.
 Needs ``stable_baselines3`` for the SB3 rows.
 """
 
@@ -30,6 +30,8 @@ from __future__ import annotations
 import tempfile
 import time
 from pathlib import Path
+
+import torch
 
 from waterair.bench.sb3 import SB3Actor, sb3_ddpg, sb3_ppo
 from waterair.bench.training import compose_training
@@ -53,14 +55,15 @@ COMPILED = ["env.compile_kernel=true", "compile_update=true"]
 """Our pipeline compiled whatever its budget (``auto`` would not compile short budgets)."""
 BASES = {"": [], "_flat_base": FLAT_BASE}
 """Each base's name suffix and overrides."""
+OURS = {"ours": [], "ours_ddpg": ["agent=ddpg", "collector.init_random_frames=1600"]}
+"""Each of our pipelines: its overrides (the defaults are PPO). DDPG learns from its first batch on, as Stable-
+Baselines3's does from its first (the defaults' 16,000 random frames first are for long runs)."""
 SB3 = {"sb3_ddpg": ("agent=ddpg", sb3_ddpg), "sb3_ppo": ("agent=ppo", sb3_ppo)}
 """Each Stable-Baselines3 pipeline: our agent whose settings it takes, and its builder."""
-SB3_CHUNK = 4_800
-"""Frames between two scorings of a Stable-Baselines3 run (three of PPO's rollouts)."""
+CHUNK = 1_600
+"""Frames between two scorings of every pipeline (one batch of our PPO, one of Stable-Baselines3 PPO's rollouts)."""
 SCENARIO = Scenario("S1", "time to quality", None, ((12.0, 0.1, 0.0),), realisations=32, steps=500, seed=12345)
-EVALUATING = "Evaluating the greedy policy"
-"""How the training loop's progress line announcing its closing evaluation starts (waterair.training.loop)."""
-PIPELINES = [f"{name}{base}{mode}" for base in BASES for name in ("ours", *SB3) for mode in ("", "_eager")]
+PIPELINES = [f"{name}{base}{mode}" for base in BASES for name in (*OURS, *SB3) for mode in ("", "_eager")]
 """Every pipeline's record key, in the table's order."""
 
 
@@ -71,37 +74,39 @@ def score(cfg, policy) -> float:
     return compare_policies(config, {"policy": policy}, SCENARIO)["policy"]["ratio_to_ub"]
 
 
-def ours(budgets: list[int], target: float, overrides: list[str]) -> dict:
-    """Fresh ``train()`` runs of growing budgets until one reaches ``target``: each (frames, seconds, ratio), and
-    the seconds of all of them up to that one (the module docstring says why the sum).
+def ours(frames: int, chunk: int, target: float, overrides: list[str]) -> dict:
+    """One ``train()`` run of at most ``frames``, scored at each checkpoint (every ``chunk`` frames) until it
+    reaches ``target``, which ends it: each scoring's (frames, seconds, ratio), and the seconds to the first that
+    reached (the module docstring says what they count). The scorings leave the run's random streams alone; the
+    run compiles from scratch, as in a process of its own (an empty compile cache, dynamo's forgotten)."""
+    from torch._inductor.utils import fresh_cache
 
-    A run's seconds run from the call until its loop ends (the closing evaluation, announced by the
-    progress line that starts with :data:`EVALUATING`, is not counted).
-    """
     from waterair.evaluation.policies import load_policy
     from waterair.training.loop import train
 
-    runs = []
-    for frames in budgets:
-        cfg = compose_training(
-            [*POINT, *overrides, f"total_frames={frames}", "eval.realisations=1", "eval.steps=1"]
-            + ["logger.progress_bar=false", f"checkpoint.every_frames={frames}"]
-        )
-        loop_end = []
-        with tempfile.TemporaryDirectory() as run_dir:
-            start = time.perf_counter()
-            train(cfg, Path(run_dir), progress=lambda line, ends=loop_end: _note_loop_end(line, ends))
-            policy = load_policy(Path(run_dir) / "checkpoints" / "last.pt")
-            actor = policy.actor(cfg.actor, env_config(cfg).observation_size)
-        runs.append({"frames": frames, "seconds": loop_end[0] - start, "ratio_to_ub": score(cfg, actor)})
-        if runs[-1]["ratio_to_ub"] >= target:
-            break
-    reached = runs[-1]["ratio_to_ub"] >= target
-    return {
-        "overrides": overrides,
-        "runs": runs,
-        "seconds_to_target": sum(r["seconds"] for r in runs) if reached else None,
-    }
+    cfg = compose_training(
+        [*POINT, *overrides, f"total_frames={frames}", "eval.realisations=1", "eval.steps=1"]
+        + ["logger.progress_bar=false", f"checkpoint.every_frames={chunk}"]
+    )
+    observation_size = env_config(cfg).observation_size
+    runs: list[dict] = []
+    scoring = 0.0
+    torch._dynamo.reset()
+    with tempfile.TemporaryDirectory() as run_dir, fresh_cache():
+
+        def scored(done: int) -> bool:
+            nonlocal scoring
+            now = time.perf_counter()
+            with torch.random.fork_rng():
+                actor = load_policy(Path(run_dir) / "checkpoints" / "last.pt").actor(cfg.actor, observation_size)
+                ratio = score(cfg, actor)
+            runs.append({"frames": done, "seconds": now - start - scoring, "ratio_to_ub": ratio})
+            scoring += time.perf_counter() - now
+            return ratio >= target
+
+        start = time.perf_counter()
+        train(cfg, Path(run_dir), progress=lambda line: None, on_checkpoint=scored)
+    return {"overrides": overrides, "runs": runs, "seconds_to_target": _first_reaching(runs, target)}
 
 
 def sb3(name: str, frames: int, chunk: int, target: float, overrides: list[str]) -> dict | None:
@@ -126,23 +131,25 @@ def sb3(name: str, frames: int, chunk: int, target: float, overrides: list[str])
 
 
 def bench_quality(
-    budgets: list[int], flat_budgets: list[int], sb3_frames: int, eager: bool = False, target: float = 0.95
+    frames: int, flat_frames: int, sb3_frames: int, eager: bool = False, chunk: int = CHUNK, target: float = 0.95
 ) -> dict:
     """Every pipeline on each base, then per base the ratio of Stable-Baselines3's best seconds to ``target``
-    over ours: exact where an SB3 run reached it, a lower bound (``..._at_least``) where none had by the end of
-    its budget."""
-    record = {"benchmark": "quality", "target": target, "scenario": "S1 point, 32 seas x 500 steps, seed 12345"}
+    over each of ours: exact where an SB3 run reached it, a lower bound (``..._at_least``) where none had by the
+    end of its budget."""
+    record = {"benchmark": "quality", "target": target, "chunk": chunk}
+    record["scenario"] = "S1 point, 32 seas x 500 steps, seed 12345"
     for base, overrides in BASES.items():
-        frames = flat_budgets if base else budgets
-        record[f"ours{base}"] = ours(frames, target, [*overrides, *COMPILED])
-        if eager:
-            record[f"ours{base}_eager"] = ours(frames, target, [*overrides, *EAGER])
+        budget = flat_frames if base else frames
+        for name, agent in OURS.items():
+            record[f"{name}{base}"] = ours(budget, chunk, target, [*agent, *overrides, *COMPILED])
+            if eager:
+                record[f"{name}{base}_eager"] = ours(budget, chunk, target, [*agent, *overrides, *EAGER])
     for base, overrides in BASES.items():
         for name in SB3:
-            record[f"{name}{base}"] = sb3(name, sb3_frames, SB3_CHUNK, target, overrides)
+            record[f"{name}{base}"] = sb3(name, sb3_frames, chunk, target, overrides)
     for base in BASES:
         theirs = [record[f"{name}{base}"] for name in SB3 if record[f"{name}{base}"] is not None]
-        for mine in (f"ours{base}", f"ours{base}_eager"):
+        for mine in (f"{name}{base}{mode}" for name in OURS for mode in ("", "_eager")):
             if not theirs or mine not in record or record[mine]["seconds_to_target"] is None:
                 continue
             reached = [run["seconds_to_target"] for run in theirs if run["seconds_to_target"] is not None]
@@ -162,12 +169,6 @@ def quality_table(record: dict) -> str:
         mine = key.removesuffix("_at_least").split("_over_")[1]
         lines.append(f"| SB3's best seconds / {mine}'s to {record['target']} | | {says}{ratio:.1f} | |")
     return "\n".join(lines)
-
-
-def _note_loop_end(line: str, ends: list[float]) -> None:
-    """Note the time when ``line`` announces the closing evaluation (the training loop has ended)."""
-    if line.startswith(EVALUATING):
-        ends.append(time.perf_counter())
 
 
 def _first_reaching(runs: list[dict], target: float) -> float | None:

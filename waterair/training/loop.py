@@ -40,21 +40,33 @@ FINAL_POLICIES = {"straight_facing": "straight_facing", "flat_snell": "flat_snel
 the classical controller of the agent's sensing (:func:`waterair.envs.controllers.controller_for`)."""
 
 
-def train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None] = print) -> dict[str, float]:
+def train(
+    cfg: DictConfig,
+    run_dir: Path,
+    progress: Callable[[str], None] = print,
+    on_checkpoint: Callable[[int], bool | None] | None = None,
+) -> dict[str, float]:
     """Train from ``cfg`` into ``run_dir`` (resuming from its checkpoint if ``cfg.resume``); return final metrics.
 
     ``progress`` receives a line with torch's threads, one saying what runs compiled, and one when the
-    closing evaluation starts and ends. The run uses ``threads`` torch threads
+    closing evaluation starts and ends. ``on_checkpoint``, when given, is called with the frames done each time
+    a checkpoint has been written (``run_dir/checkpoints/last.pt``); a true return ends the training there (the
+    closing evaluation still runs): early stopping. The run uses ``threads`` torch threads
     (:func:`waterair.core.threads.choose_threads`); the caller's count is restored afterwards.
     """
     validate(cfg)
     threads, why = choose_threads(cfg.get("threads", AUTO_THREADS))
     progress(f"Running on {threads} torch thread{'s' if threads > 1 else ''} ({why})")
     with torch_threads(threads):
-        return _train(cfg, Path(run_dir), progress)
+        return _train(cfg, Path(run_dir), progress, on_checkpoint)
 
 
-def _train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None]) -> dict[str, float]:
+def _train(
+    cfg: DictConfig,
+    run_dir: Path,
+    progress: Callable[[str], None],
+    on_checkpoint: Callable[[int], bool | None] | None,
+) -> dict[str, float]:
     resumed = bool(cfg.resume) and (run_dir / CHECKPOINT).exists()
     device = resolve_device(cfg.device)
     torch.manual_seed(cfg.seed)
@@ -121,6 +133,8 @@ def _train(cfg: DictConfig, run_dir: Path, progress: Callable[[str], None]) -> d
         if counters.frames - last_checkpoint >= cfg.checkpoint.every_frames or counters.frames >= cfg.total_frames:
             save_checkpoint(run_dir, counters, learner, cfg.checkpoint.keep_buffer)
             last_checkpoint = counters.frames
+            if on_checkpoint is not None and on_checkpoint(counters.frames):
+                break
         clock = time.perf_counter()
     bar.close()
     collector.shutdown()
