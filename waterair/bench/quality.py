@@ -9,8 +9,8 @@ one after the other:
   policy scored at every checkpoint (each ``chunk`` frames) until one reaches the target, which ends the run
   (``train``'s ``on_checkpoint``). Its time runs from the call to that checkpoint, less the scorings before it:
   environment construction, compiles (each run's from an empty cache of its own) and training counted, the
-  scorings not. Its first policy is the zero
-  residual, i.e. the beacon tracker, so the first scoring measures how soon the pipeline stands where it starts;
+  scorings not. Its first policy is the zero residual, i.e. the beacon tracker, so the first scoring measures
+  how soon the pipeline stands where it starts;
 * **ours_ddpg**: the same with ``agent=ddpg`` (:data:`OURS`), Stable-Baselines3 DDPG's counterpart;
 * each again with residual actions on flat-sea Snell (``_flat_base``, ``flat_frames``), so that the agent must
   learn the tracking itself, and with the step and the update eager (``_eager``, :data:`EAGER`) when asked;
