@@ -228,13 +228,15 @@ def _ascend(light: LightSamples, tx: torch.Tensor, rx: torch.Tensor, optics: Tra
         alpha_d = angle_between(tx.unsqueeze(1), light.departure)
         return alpha_d, departure_gain(alpha_d, optics.divergence, optics.wavelength)
 
+    def shares(g_d: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:  # as pointed_gains, with G_D already known
+        return light.weight * g_d * arrival_gains(light, rx, optics)
+
     alpha_d, g_d = departures(tx)
     for _ in range(iterations):
-        share = light.weight * g_d * arrival_gains(light, rx, optics)
-        tx = weighted_direction(share * torch.cos(alpha_d), light.departure, tx)
+        tx = weighted_direction(shares(g_d, rx) * torch.cos(alpha_d), light.departure, tx)
         alpha_d, g_d = departures(tx)
         rx = weighted_direction(light.weight * g_d, -light.arrival, rx)
-    return (light.weight * g_d * arrival_gains(light, rx, optics)).sum(-1), tx, rx  # G (eq. 4.7) at (tx, rx)
+    return shares(g_d, rx).sum(-1), tx, rx  # G (eq. 4.7) at (tx, rx)
 
 
 def weighted_direction(weights: torch.Tensor, directions: torch.Tensor, fallback: torch.Tensor) -> torch.Tensor:
