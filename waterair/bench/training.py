@@ -86,31 +86,34 @@ def bench_update(updates: int) -> dict:
     ddpg = DDPG(cfg)
     actor, critic = make_actor(cfg, env, "cpu"), ddpg.make_critic(env, "cpu")
     loss, target_update = ddpg.make_loss(actor, None, critic, env)  # DDPG learns the actor itself
-    optim_actor, optim_critic = ddpg.make_optimisers(loss)
     with tempfile.TemporaryDirectory() as scratch:
         buffer = make_buffer(cfg, Path(scratch), "cpu", on_policy=DDPG.on_policy)
         _fill(buffer, env, BUFFER_FILL)
+        batch = cfg.buffer.batch_size
         record: dict = {}
         for compiled in (False, True):
-            cfg.compile_update = compiled  # read by make_update (ddpg holds this cfg)
+            cfg.compile_update = compiled  # read by make_optimisers and make_update (ddpg holds this cfg)
+            optim_actor, optim_critic = ddpg.make_optimisers(loss)
+            if not compiled:
+                breakdown = _breakdown(buffer, batch, loss, target_update, optim_actor, optim_critic, updates)
+                record["breakdown_eager_ms"] = breakdown
             update = ddpg.make_update(loss, target_update, optim_actor, optim_critic)
             for i in range(30):  # warm-up (and the compile)
-                update(buffer.sample(), i)
+                update(buffer.sample(batch), i)
             record["ours_compiled_ms" if compiled else "ours_eager_ms"] = _median_ms(
-                lambda update=update: update(buffer.sample(), 0), updates
+                lambda update=update: update(buffer.sample(batch), 0), updates
             )
-        record["breakdown_eager_ms"] = _breakdown(buffer, loss, target_update, optim_actor, optim_critic, updates)
         record["bare_ms"] = bench_bare(cfg, env.base_env.observation_size, buffer, updates)
     record["ratio_eager"] = record["ours_eager_ms"] / record["bare_ms"]
     record["ratio_compiled"] = record["ours_compiled_ms"] / record["bare_ms"]
     return record
 
 
-def _breakdown(buffer, loss, target_update, optim_actor, optim_critic, count: int) -> dict:
+def _breakdown(buffer, size: int, loss, target_update, optim_actor, optim_critic, count: int) -> dict:
     parts = {"sample": [], "loss": [], "backward_and_steps": [], "target_update": []}
     for _ in range(count):
         t0 = time.perf_counter()
-        batch = buffer.sample()
+        batch = buffer.sample(size)
         t1 = time.perf_counter()
         losses = loss(batch)
         t2 = time.perf_counter()

@@ -58,7 +58,9 @@ def make_buffer(cfg: DictConfig, run_dir: Path, device, on_policy: bool) -> Tens
 
     ``on_policy`` (the algorithm's trait): the last collected batch alone, sampled in whole minibatches
     without replacement; the rows a pass cannot fill a minibatch with wait for the next pass's shuffle,
-    so every pass starts on a fresh permutation.
+    so every pass starts on a fresh permutation. Each ``sample`` is a whole pass's minibatches, which the
+    learning step splits (the same rows as one call per minibatch). Off-policy: uniform with replacement, each
+    ``sample`` of the size it names (a collected batch's updates draw theirs in one call).
     """
     capacity = cfg.collector.frames_per_batch if on_policy else cfg.buffer.capacity
     if cfg.buffer.name == "memmap":
@@ -67,7 +69,8 @@ def make_buffer(cfg: DictConfig, run_dir: Path, device, on_policy: bool) -> Tens
     else:
         storage = LazyTensorStorage(capacity, device=device)
     sampler = SamplerWithoutReplacement(drop_last=True) if on_policy else None
-    return TensorDictReplayBuffer(storage=storage, sampler=sampler, batch_size=cfg.buffer.batch_size)
+    per_pass = capacity // cfg.buffer.batch_size * cfg.buffer.batch_size if on_policy else None
+    return TensorDictReplayBuffer(storage=storage, sampler=sampler, batch_size=per_pass)
 
 
 def make_collector(cfg: DictConfig, env, policy, frames_done: int) -> Collector:

@@ -15,7 +15,7 @@ from omegaconf import DictConfig
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule, TensorDictSequential
 from torchrl.modules import AdditiveGaussianModule, OrnsteinUhlenbeckProcessModule, ValueOperator
-from torchrl.objectives import SoftUpdate
+from torchrl.objectives import LossModule, SoftUpdate
 
 from waterair.agents.networks import make_critic
 from waterair.core.inductor import torch_compile
@@ -31,6 +31,26 @@ TRANSITION_KEYS = (
     ("next", "terminated"),
 )
 """What the replay buffer stores: the losses read nothing else (the env's gains stay out)."""
+
+
+class PolyakUpdate(SoftUpdate):
+    """TorchRL's ``SoftUpdate``, θ' ← θ' + τ (θ − θ') for every target parameter, as one foreach ``lerp_`` over the
+    loss's tensors listed once: the same arithmetic as its per-parameter loop, without walking the loss's parameter
+    tensordicts at every update (0.43 ms of an eager update's 5.3, now 0.05; docs/benchmarks.md, "Training").
+    Loading a state dict into the loss copies into these tensors; the loss must not be moved to another device
+    after."""
+
+    def __init__(self, loss: LossModule, *, tau: float) -> None:
+        super().__init__(loss, tau=tau)
+        self._lists: tuple[list[torch.Tensor], list[torch.Tensor]] = [], []
+        for key, source in self._sources.items(include_nested=True, leaves_only=True):
+            first, *rest = key if isinstance(key, tuple) else (key,)
+            self._lists[0].append(self._targets.get((f"target_{first}", *rest)).data)
+            self._lists[1].append(source.data)
+
+    @torch.no_grad()
+    def step(self) -> None:
+        torch._foreach_lerp_(*self._lists, 1.0 - self.eps)
 
 
 class OffPolicy(Algorithm):
@@ -91,10 +111,10 @@ class OffPolicy(Algorithm):
 
     def make_loss(self, actor, exploration, critic, env):
         """The loss of the deterministic ``actor`` (not the noisy ``exploration``) with a TD(0) estimator at
-        ``agent.gamma``, and the ``SoftUpdate`` of its target networks at rate ``agent.tau``."""
+        ``agent.gamma``, and the soft update of its target networks at rate ``agent.tau`` (:class:`PolyakUpdate`)."""
         loss = instantiate(self.cfg.agent.loss)(actor, critic, **self.loss_options(env))
         loss.make_value_estimator(gamma=self.cfg.agent.gamma)
-        return loss, SoftUpdate(loss, tau=self.cfg.agent.tau)
+        return loss, PolyakUpdate(loss, tau=self.cfg.agent.tau)
 
     def loss_options(self, env) -> dict:
         """Further arguments of ``agent.loss``, from the environment: none."""
@@ -129,7 +149,9 @@ class OffPolicy(Algorithm):
     def make_learn(self, loss, update: Update, buffer, noise) -> Learn:
         """Anneal the noise, store the batch's transitions, then take ``collector.updates_per_frame`` × its
         frames updates, each on a sample of the whole replay; none before ``collector.init_random_frames``
-        (uniform random actions) or while the replay holds less than one sample."""
+        (uniform random actions) or while the replay holds less than one sample. The replay does not change
+        between a batch's updates, so their samples (uniform, with replacement) are drawn in one call and split:
+        the same distribution as one call each, without 0.3 ms of sampling per eager update."""
         per_batch = updates_per_batch(self.cfg)
         steps_per_batch = self.cfg.collector.frames_per_batch // self.cfg.env.num_envs
         random_frames, batch_size = self.cfg.collector.init_random_frames, self.cfg.buffer.batch_size
@@ -140,8 +162,8 @@ class OffPolicy(Algorithm):
             if progress.frames < random_frames or len(buffer) < batch_size:
                 return []
             losses = []
-            for _ in range(per_batch):
-                losses.append(update(buffer.sample(), progress.updates))
+            for sample in buffer.sample(batch_size * per_batch).split(batch_size):
+                losses.append(update(sample, progress.updates))
                 progress.updates += 1
             return losses
 

@@ -112,7 +112,8 @@ class PPO(Algorithm):
         cfg = self.cfg
         keys = loss.tensor_keys
         stored = ("observation", "action", keys.sample_log_prob, keys.advantage, keys.value_target)
-        per_pass = cfg.collector.frames_per_batch // cfg.buffer.batch_size
+        batch_size = cfg.buffer.batch_size
+        per_pass = cfg.collector.frames_per_batch // batch_size
         passes = max(1, round(updates_per_batch(cfg) / per_pass))
         random_frames, target_kl = cfg.collector.init_random_frames, cfg.agent.target_kl
 
@@ -127,8 +128,8 @@ class PPO(Algorithm):
                 with torch.no_grad():
                     loss.value_estimator(batch)
                 buffer.extend(batch.select(*stored).reshape(-1))  # the storage holds one batch
-                for _ in range(per_pass):
-                    losses.append(update(buffer.sample(), progress.updates))
+                for minibatch in buffer.sample().split(batch_size):  # a pass: one permutation's minibatches
+                    losses.append(update(minibatch, progress.updates))
                     progress.updates += 1
             return losses
 
