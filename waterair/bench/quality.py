@@ -11,7 +11,8 @@ one after the other:
   environment construction, compiles (each run's from an empty cache of its own) and training counted, the
   scorings not. Its first policy is the zero residual, i.e. the beacon tracker, so the first scoring measures
   how soon the pipeline stands where it starts;
-* **ours_ddpg**: the same with ``agent=ddpg`` (:data:`OURS`), Stable-Baselines3 DDPG's counterpart;
+* **ours_ddpg**: the same with ``agent=ddpg`` (:data:`OURS`), Stable-Baselines3 DDPG's counterpart, which like
+  it learns from its first batch and is scored on its live actor;
 * each again with residual actions on flat-sea Snell (``_flat_base``, ``flat_frames``), so that the agent must
   learn the tracking itself, and with the step and the update eager (``_eager``, :data:`EAGER`) when asked;
 * **sb3_ddpg, sb3_ppo**: Stable-Baselines3 DDPG and PPO on our Gymnasium view with the same observation,
@@ -55,9 +56,10 @@ COMPILED = ["env.compile_kernel=true", "compile_update=true"]
 """Our pipeline compiled whatever its budget (``auto`` would not compile short budgets)."""
 BASES = {"": [], "_flat_base": FLAT_BASE}
 """Each base's name suffix and overrides."""
-OURS = {"ours": [], "ours_ddpg": ["agent=ddpg", "collector.init_random_frames=1600"]}
-"""Each of our pipelines: its overrides (the defaults are PPO). DDPG learns from its first batch on, as Stable-
-Baselines3's does from its first (the defaults' 16,000 random frames first are for long runs)."""
+OURS = {"ours": [], "ours_ddpg": ["agent=ddpg", "collector.init_random_frames=1600", "agent.policy_weights=last"]}
+"""Each of our pipelines: its overrides (the defaults are PPO). DDPG as Stable-Baselines3's: learning from its first
+batch on and scored on its live actor (the defaults' 16,000 random frames first and the actor's Polyak average are
+for long runs: the average at τ = 0.001 trails the actor by about 1,000 updates)."""
 SB3 = {"sb3_ddpg": ("agent=ddpg", sb3_ddpg), "sb3_ppo": ("agent=ppo", sb3_ppo)}
 """Each Stable-Baselines3 pipeline: our agent whose settings it takes, and its builder."""
 CHUNK = 1_600
