@@ -1,5 +1,7 @@
-"""The off-policy update's own pieces against TorchRL's: the soft target update as one foreach lerp, DDPG's target
-at discount 0 without the target networks, Adam fused only for an eager update, a batch's samples in one draw."""
+"""The update's own pieces against TorchRL's: the soft target update as one foreach lerp, DDPG's target at discount
+0 without the target networks, Adam fused only for an eager update, a batch's samples (a PPO pass's) in one draw."""
+
+from types import SimpleNamespace
 
 import pytest
 import torch
@@ -10,6 +12,7 @@ from torchrl.objectives.value import TD0Estimator
 
 from waterair.training.algorithms.ddpg import DDPG, RewardTarget
 from waterair.training.algorithms.off_policy import PolyakUpdate
+from waterair.training.algorithms.ppo import PPO
 from waterair.training.builders import make_actor, make_buffer, make_env
 
 
@@ -116,14 +119,14 @@ def test_adam_is_fused_only_for_an_eager_update(compiled):
         assert bool(optimiser.param_groups[0]["fused"]) is not compiled
 
 
-def test_a_batch_s_updates_each_get_their_own_sample_of_the_replay(monkeypatch):
+def test_a_batch_s_updates_each_get_their_own_sample_of_the_replay():
     cfg, env, algorithm, loss, _ = ddpg_pieces("collector.frames_per_batch=64", "collector.init_random_frames=0")
     buffer = replay(env, algorithm, frames=128)
     seen: list[TensorDict] = []
-    noise = type("Noise", (), {"step": lambda self, steps: None})()
+    noise = SimpleNamespace(step=lambda steps: None)
     learn = algorithm.make_learn(loss, lambda batch, count: seen.append(batch) or torch.zeros(2), buffer, noise)
-    progress = type("Progress", (), {"frames": 64, "updates": 0})()
-    learn(env.rollout(16).reshape(4, 16), progress)
+    progress = SimpleNamespace(frames=64, updates=0)
+    learn(env.rollout(16), progress)
     per_batch = round(64 * cfg.collector.updates_per_frame)
     assert len(seen) == per_batch == progress.updates == 16
     assert all(batch.batch_size == torch.Size([cfg.buffer.batch_size]) for batch in seen)
@@ -131,3 +134,26 @@ def test_a_batch_s_updates_each_get_their_own_sample_of_the_replay(monkeypatch):
     for batch in seen:  # every row is one of the replay's
         assert (batch["observation"][:, None] == stored[None]).all(-1).any(-1).all()
     assert len({tuple(batch["index"].tolist()) for batch in seen}) == per_batch  # each its own draw
+
+
+def test_each_ppo_pass_is_one_permutation_of_the_batch_in_whole_minibatches():
+    # 400 frames in minibatches of 64: 6 a pass, the 16 rows left over wait for the next pass's shuffle
+    overrides = [*TINY, *ONE_PATH, "agent=ppo", "env.num_envs=8", "collector.init_random_frames=0"]
+    cfg = compose_config("config", [*overrides, "agent.target_kl=null"])
+    env = make_env(cfg)
+    algorithm = PPO(cfg)
+    actor, critic = make_actor(cfg, env, "cpu"), algorithm.make_critic(env, "cpu")
+    exploration, noise = algorithm.make_exploration(actor, env, "cpu")
+    loss, _ = algorithm.make_loss(actor, exploration, critic, env)
+    buffer = make_buffer(cfg, None, "cpu", on_policy=True)
+    seen: list[TensorDict] = []
+    learn = algorithm.make_learn(loss, lambda batch, count: seen.append(batch) or torch.zeros(3), buffer, noise)
+    with torch.no_grad():
+        batch = env.rollout(50, exploration)  # [8, 50]: one collected batch
+    learn(batch, SimpleNamespace(frames=400, updates=0))
+    per_pass = 400 // 64
+    assert len(seen) == per_pass * 10 and all(minibatch.batch_size == torch.Size([64]) for minibatch in seen)
+    for first in range(0, len(seen), per_pass):
+        rows = torch.cat([minibatch["index"] for minibatch in seen[first : first + per_pass]])
+        assert rows.unique().numel() == per_pass * 64  # no row twice within a pass
+    assert not torch.equal(seen[0]["index"], seen[per_pass]["index"])  # each pass its own shuffle
