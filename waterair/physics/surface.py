@@ -148,19 +148,12 @@ def _node_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor, rows=None,
     # (g_i α, g_j β) [B, 2, n, K]: the wavenumber projected on each basis column, at each grid coordinate
     projected = kx.unsqueeze(1) * basis[:, 0, :, None] + ky.unsqueeze(1) * basis[:, 1, :, None]
     angle = projected.unsqueeze(2) * grid[:, None]
-    if rows is None or columns is None:
-        cos, sin = torch.cos(angle), torch.sin(angle)
-        cos_a, sin_a = cos[:, 0], sin[:, 0]
-        return c_re * cos_a + c_im * sin_a, c_im * cos_a - c_re * sin_a, cos[:, 1], sin[:, 1]
     harmonics = kx.shape[-1]
-    real, imaginary = rows[..., :harmonics], rows[..., harmonics:]
-    cos_b, sin_b = columns[..., :harmonics], columns[..., harmonics:]
-    torch.cos(angle[:, 1], out=cos_b)
-    torch.sin(angle[:, 1], out=sin_b)
+    written = (None,) * 4 if rows is None else (*rows.split(harmonics, -1), *columns.split(harmonics, -1))
     cos_a, sin_a = torch.cos(angle[:, 0]), torch.sin(angle[:, 0])
-    torch.mul(c_re, cos_a, out=real).add_(c_im * sin_a)
-    torch.mul(c_im, cos_a, out=imaginary).sub_(c_re * sin_a)
-    return real, imaginary, cos_b, sin_b
+    real = torch.add(c_re * cos_a, c_im * sin_a, out=written[0])
+    imaginary = torch.sub(c_im * cos_a, c_re * sin_a, out=written[1])
+    return real, imaginary, torch.cos(angle[:, 1], out=written[2]), torch.sin(angle[:, 1], out=written[3])
 
 
 def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int):
