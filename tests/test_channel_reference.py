@@ -28,12 +28,14 @@ edge"; on the Intel machine alone, where the AMD recordings of those two cases w
 acquisition (docs/environment.md, "Residual actions"), and again, on the Intel machine alone, when the sensor
 noise became a stream per link (docs/environment.md, "Sensing"): the AMD recordings no longer hold them, so an
 AMD machine compares those cases with the Intel recording within the tolerance (the new noise on this machine
-through AVX2 and AVX512: equal, or 8e-17 apart). Every other case is still the first recording: the paper's
-single path (`+experiment=paper`) among them. The two recordings of an AMD EPYC (AVX512, and AVX2
-through ``ATEN_CPU_CAPABILITY=avx2``) predate the identity: their model and thread count were not kept, so no
-machine compares with them exactly. ``python tests/test_channel_reference.py [CASE ...]`` adds (or replaces) this
-machine's recording, after checking that it agrees with the others within the tolerance; the CASEs
-(``channel/sea/interface``) named are dropped from the others' recordings: cases a change meant to move.
+through AVX2 and AVX512: equal, or 8e-17 apart). The full channel on the measured-slope sea was recorded again
+on an AMD EPYC (Zen 4) alone when the eager lattice's per-axis factors became powers of one (within 1e-15 of
+the Intel recording it replaced): that machine's recording holds every case. Every other case is still the
+first recording: the paper's single path (`+experiment=paper`) among them. The two recordings of an AMD EPYC
+(AVX512, and AVX2 through ``ATEN_CPU_CAPABILITY=avx2``) predate the identity: their model and thread count were
+not kept, so no machine compares with them exactly. ``python tests/test_channel_reference.py [CASE ...]`` adds
+(or replaces) this machine's recording, after checking that it agrees with the others within the tolerance; the
+CASEs (``channel/sea/interface``) named are dropped from the others' recordings: cases a change meant to move.
 """
 
 import itertools

@@ -107,15 +107,16 @@ def lattice_harmonic_sums(sea: Harmonics, centre, basis, grid, t, order: int):
     sine and a cosine per node and harmonic.
 
     Args: ``sea``'s components ``[B, K]``; ``centre`` ``[B, 2]`` (m); ``basis`` ``[B, 2, 2]`` (m, its columns the
-    lattice's steps per unit of ``grid``); ``grid`` ``[n]``, the node coordinates along each axis; ``t`` ``[B]``
-    (s); ``order`` 0-2. Returns :func:`harmonic_sums`'s tuple, each ``[B, n²]``, node (i, j) at i n + j
+    lattice's steps per unit of ``grid``); ``grid`` ``[n]``, the node coordinates along each axis, evenly spaced;
+    ``t`` ``[B]`` (s); ``order`` 0-2. Returns :func:`harmonic_sums`'s tuple, each ``[B, n²]``, node (i, j) at i n + j
     (``torch.meshgrid(grid, grid, indexing="ij")``).
 
     The phase is affine in the node: ψ(i, j) = ψ_c − g_i α − g_j β with ψ_c the centre's phase and α, β the
     wavenumber projected on the basis' columns, so that a e^{iψ(i, j)} = (a e^{iψ_c}) e^{−i g_i α} e^{−i g_j β}:
-    1 + 2n complex exponentials per harmonic instead of n² (docs/model.md §4.3). Eager PyTorch sums over the
-    harmonics as a matrix product of the i-factors ``[n, K]`` and the j-factors ``[K, n]``, in real arithmetic and
-    in chunks of seas, as :func:`harmonic_sums`; compiled on a CPU, the factors are written once and inductor sums
+    1 + 2n complex exponentials per harmonic instead of n² (docs/model.md §4.3), and on the uniform ``grid`` the
+    n per axis are powers of one (:func:`_power_factors`). Eager PyTorch sums over the harmonics as a matrix
+    product of the i-factors ``[n, K]`` and the j-factors ``[K, n]``, in real arithmetic and in chunks of seas, as
+    :func:`harmonic_sums`; compiled on a CPU, the factors are written once and inductor sums
     their products in its own loop (:func:`_compiled_lattice_sums`); compiled on a GPU, one sine and cosine per node
     and harmonic (:func:`harmonic_sums`).
     """
@@ -136,24 +137,62 @@ def lattice_nodes(centre: torch.Tensor, basis: torch.Tensor, grid: torch.Tensor)
     return centre.unsqueeze(1) + torch.einsum("bij,nj->bni", basis, z)
 
 
-def _node_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor, rows=None, columns=None):
+def _node_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor):
     """The lattice's per-axis factors, each ``[B, n, K]``: the i-factors a e^{iψ_c} e^{−i g_i α} (real, imaginary)
-    and the j-factors e^{−i g_j β} = cos − i sin (cos, sin). Given ``rows`` and ``columns`` (``[B, n, 2K]``
-    each), the same arithmetic written into them, [real | imaginary] and [cos | sin], and views of them returned:
-    eager, the matrix product's operands without copying the factors into them (the same values bit for bit; an
-    eager step of 64 links on one thread 32.6 ms instead of 34.2, medians of 5 alternating processes)."""
+    and the j-factors e^{−i g_j β} = cos − i sin (cos, sin), a sine and a cosine per axis, node and harmonic."""
     omega, phase, kx, ky, amplitude, centre, basis, t = inputs
     psi = omega * t.unsqueeze(-1) + phase - kx * centre[:, :1] - ky * centre[:, 1:]
     c_re, c_im = (amplitude * torch.cos(psi)).unsqueeze(1), (amplitude * torch.sin(psi)).unsqueeze(1)  # a e^{iψ_c}
     # (g_i α, g_j β) [B, 2, n, K]: the wavenumber projected on each basis column, at each grid coordinate
     projected = kx.unsqueeze(1) * basis[:, 0, :, None] + ky.unsqueeze(1) * basis[:, 1, :, None]
     angle = projected.unsqueeze(2) * grid[:, None]
-    harmonics = kx.shape[-1]
-    written = (None,) * 4 if rows is None else (*rows.split(harmonics, -1), *columns.split(harmonics, -1))
     cos_a, sin_a = torch.cos(angle[:, 0]), torch.sin(angle[:, 0])
-    real = torch.add(c_re * cos_a, c_im * sin_a, out=written[0])
-    imaginary = torch.sub(c_im * cos_a, c_re * sin_a, out=written[1])
-    return real, imaginary, torch.cos(angle[:, 1], out=written[2]), torch.sin(angle[:, 1], out=written[3])
+    real, imaginary = c_re * cos_a + c_im * sin_a, c_im * cos_a - c_re * sin_a
+    return real, imaginary, torch.cos(angle[:, 1]), torch.sin(angle[:, 1])
+
+
+def _power_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor, rows: torch.Tensor, columns: torch.Tensor):
+    """:func:`_node_factors` written into ``rows`` (``[B, n, 2K]``, [real | imaginary]) and ``columns`` (``[B, n,
+    2K]``, [cos | sin]), the matrix product's operands, with three sines and cosines per harmonic instead of 1 + 2n.
+
+    The grid is uniform, g_i = g_m + (i − m) h about its middle node m, so e^{−i g_i α} = e^{−i g_m α} e^{−i (i − m)
+    h α}: the middle node's factors join the centre's phase, and the others are powers of e^{−i h α}
+    (:func:`_powers`), as for β. Eager, the lattice's sums at 64 links take about 20 % less time than with
+    :func:`_node_factors`; compiled on a CPU they are bound by writing the factors, not by their sines, and were
+    no faster (docs/benchmarks.md, "Lattice sums"). Returns the j-factors' cos and sin, views of ``columns``."""
+    omega, phase, kx, ky, amplitude, centre, basis, t = inputs
+    nodes, harmonics = grid.shape[0], kx.shape[-1]
+    middle = nodes // 2
+    projected = kx.unsqueeze(1) * basis[:, 0, :, None] + ky.unsqueeze(1) * basis[:, 1, :, None]  # (α, β) [B, 2, K]
+    psi = omega * t.unsqueeze(-1) + phase - kx * centre[:, :1] - ky * centre[:, 1:] - grid[middle] * projected.sum(1)
+    c_re, c_im = (amplitude * torch.cos(psi)).unsqueeze(1), (amplitude * torch.sin(psi)).unsqueeze(1)  # at (m, m)
+    cos_d, sin_d = _powers(projected * ((grid[-1] - grid[0]) / (nodes - 1)), max(middle, nodes - 1 - middle))
+    sin_d += [-v for v in sin_d[:0:-1]]  # sin(−d x) at index −d
+    offsets = range(-middle, nodes - middle)
+    real, imaginary = rows.split(harmonics, -1)
+    cos_b, sin_b = columns.split(harmonics, -1)
+    cos_a = torch.stack([cos_d[abs(d)][:, 0] for d in offsets], dim=1)  # cos((i − m) h α) [B, n, K]
+    sin_a = torch.stack([sin_d[d][:, 0] for d in offsets], dim=1)
+    torch.add(c_re * cos_a, c_im * sin_a, out=real)
+    torch.sub(c_im * cos_a, c_re * sin_a, out=imaginary)
+    torch.stack([cos_d[abs(d)][:, 1] for d in offsets], dim=1, out=cos_b)
+    torch.stack([sin_d[d][:, 1] for d in offsets], dim=1, out=sin_b)
+    return cos_b, sin_b
+
+
+def _powers(angle: torch.Tensor, highest: int) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+    """cos(d x) and sin(d x) for d = 0 … ``highest`` from one cosine and sine of x = ``angle``: e^{i d x} squared
+    from e^{i d x / 2} where d is even (cos 2y = 1 − 2 sin² y, sin 2y = 2 sin y cos y), times e^{i x} where odd."""
+    cos, sin = [torch.ones_like(angle), torch.cos(angle)], [torch.zeros_like(angle), torch.sin(angle)]
+    for d in range(2, highest + 1):
+        if d % 2 == 0:
+            half_cos, half_sin = cos[d // 2], sin[d // 2]
+            cos.append(1 - 2 * half_sin * half_sin)
+            sin.append(2 * half_sin * half_cos)
+        else:
+            cos.append(cos[d - 1] * cos[1] - sin[d - 1] * sin[1])
+            sin.append(sin[d - 1] * cos[1] + cos[d - 1] * sin[1])
+    return cos[: highest + 1], sin[: highest + 1]
 
 
 def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int):
@@ -166,7 +205,7 @@ def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int
     # and the imaginary part (m_im cos − m_re sin) of the product, each weighted per harmonic by its sum's factor:
     # η = Re Σ a e^{iψ}; η_x, η_y = Im Σ (kx, ky) a e^{iψ}; η_xx, η_xy, η_yy = −Re Σ (kx², kx ky, ky²) a e^{iψ}
     columns = kx.new_empty(batch, terms, n, 2 * harmonics)
-    _, _, cos_b, sin_b = _node_factors(inputs, grid, rows, columns[:, 0])
+    cos_b, sin_b = _power_factors(inputs, grid, rows, columns[:, 0])
     if order >= 1:
         minus_sin = -sin_b
         for term, weight in ((1, kx), (2, ky)):
