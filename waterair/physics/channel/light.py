@@ -133,18 +133,27 @@ def pointed_gains(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tenso
     return light.weight * g_d * arrival_gains(light, rx_dir, optics)
 
 
-def arrival_gains(light: LightSamples, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
+def arrival_gains(
+    light: LightSamples, rx_dir: torch.Tensor, optics: Transceiver, reach: torch.Tensor | None = None
+) -> torch.Tensor:
     """Each sample's G_A ``[B, N]`` for the receiver boresight ``rx_dir`` ``[B, 3]``: a ray's, or averaged over a
-    lattice node's cell where ``light.cell`` is given (docs/model.md §4.3, "The field of view's edge")."""
+    lattice node's cell where ``light.cell`` is given (docs/model.md §4.3, "The field of view's edge"). ``reach``:
+    :func:`cell_reach` of ``light``, where the caller evaluates many boresights on one light."""
     boresight = rx_dir.unsqueeze(1)
     alpha_a = angle_between(boresight, -light.arrival)
     if light.cell is None:
         return arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index)
     # dα_A = (boresight · du2) / sin α_A across the cell, no more than |du2| (the angle between unit vectors)
     change = (boresight.unsqueeze(-2) * light.cell).sum(-1)
-    largest = torch.linalg.vector_norm(light.cell, dim=-1)
+    largest = cell_reach(light) if reach is None else reach
     steps = (change / torch.sin(alpha_a).unsqueeze(-1).clamp(min=1e-12)).clamp(-largest, largest)
     return arrival_gain_over_cell(alpha_a, steps, optics.half_fov, optics.concentrator_index)
+
+
+def cell_reach(light: LightSamples) -> torch.Tensor | None:
+    """The largest change of each sample's arrival angle across its cell along each axis, |du2| ``[B, N, 2]``
+    (rad), whatever the boresight; None where the samples are rays."""
+    return None if light.cell is None else torch.linalg.vector_norm(light.cell, dim=-1)
 
 
 def received_gain(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
@@ -170,7 +179,8 @@ def upper_bound(
         weighted_direction(weight, light.departure, light.departure[:, 0]),
         weighted_direction(weight, -light.arrival, -light.arrival[:, 0]),
     )
-    results = [_ascend(light, tx, rx, optics, iterations) for tx, rx in (mean, brightest(light))]
+    reach = cell_reach(light)
+    results = [_ascend(light, tx, rx, optics, iterations, reach) for tx, rx in (mean, brightest(light))]
     (gain_a, tx_a, rx_a), (gain_b, tx_b, rx_b) = results
     better = (gain_b > gain_a).unsqueeze(-1)
     return torch.maximum(gain_a, gain_b), torch.where(better, tx_b, tx_a), torch.where(better, rx_b, rx_a)
@@ -220,16 +230,17 @@ def light_centroid(
     return weighted_direction(shares, light.arrival, -rx_dir), seen
 
 
-def _ascend(light: LightSamples, tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver, iterations: int):
+def _ascend(light: LightSamples, tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver, iterations: int, reach=None):
     """Alternating ascent of eq. (4.7) from (tx, rx); returns (gain, tx, rx). Each transmitter direction's angles
-    to the samples and G_D are computed once, for the receiver's move after it and the transmitter's next."""
+    to the samples and G_D are computed once, for the receiver's move after it and the transmitter's next; the
+    cells' :func:`cell_reach` once for all (``reach``)."""
 
     def departures(tx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         alpha_d = angle_between(tx.unsqueeze(1), light.departure)
         return alpha_d, departure_gain(alpha_d, optics.divergence, optics.wavelength)
 
     def shares(g_d: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:  # as pointed_gains, with G_D already known
-        return light.weight * g_d * arrival_gains(light, rx, optics)
+        return light.weight * g_d * arrival_gains(light, rx, optics, reach)
 
     alpha_d, g_d = departures(tx)
     for _ in range(iterations):
