@@ -138,22 +138,22 @@ def arrival_gains(
 ) -> torch.Tensor:
     """Each sample's G_A ``[B, N]`` for the receiver boresight ``rx_dir`` ``[B, 3]``: a ray's, or averaged over a
     lattice node's cell where ``light.cell`` is given (docs/model.md §4.3, "The field of view's edge"). ``reach``:
-    :func:`cell_reach` of ``light``, where the caller evaluates many boresights on one light."""
+    :func:`cell_reach` of ``light.cell``, where the caller evaluates many boresights on one light."""
     boresight = rx_dir.unsqueeze(1)
     alpha_a = angle_between(boresight, -light.arrival)
     if light.cell is None:
         return arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index)
     # dα_A = (boresight · du2) / sin α_A across the cell, no more than |du2| (the angle between unit vectors)
     change = (boresight.unsqueeze(-2) * light.cell).sum(-1)
-    largest = cell_reach(light) if reach is None else reach
+    largest = cell_reach(light.cell) if reach is None else reach
     steps = (change / torch.sin(alpha_a).unsqueeze(-1).clamp(min=1e-12)).clamp(-largest, largest)
     return arrival_gain_over_cell(alpha_a, steps, optics.half_fov, optics.concentrator_index)
 
 
-def cell_reach(light: LightSamples) -> torch.Tensor | None:
-    """The largest change of each sample's arrival angle across its cell along each axis, |du2| ``[B, N, 2]``
-    (rad), whatever the boresight; None where the samples are rays."""
-    return None if light.cell is None else torch.linalg.vector_norm(light.cell, dim=-1)
+def cell_reach(cell: torch.Tensor) -> torch.Tensor:
+    """The largest change of each sample's arrival angle across its ``cell`` (:class:`LightSamples`) along each
+    axis, |du2| ``[B, N, 2]`` (rad), whatever the boresight."""
+    return torch.linalg.vector_norm(cell, dim=-1)
 
 
 def received_gain(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
@@ -179,7 +179,7 @@ def upper_bound(
         weighted_direction(weight, light.departure, light.departure[:, 0]),
         weighted_direction(weight, -light.arrival, -light.arrival[:, 0]),
     )
-    reach = cell_reach(light)
+    reach = None if light.cell is None else cell_reach(light.cell)
     results = [_ascend(light, tx, rx, optics, iterations, reach) for tx, rx in (mean, brightest(light))]
     (gain_a, tx_a, rx_a), (gain_b, tx_b, rx_b) = results
     better = (gain_b > gain_a).unsqueeze(-1)
@@ -230,7 +230,14 @@ def light_centroid(
     return weighted_direction(shares, light.arrival, -rx_dir), seen
 
 
-def _ascend(light: LightSamples, tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver, iterations: int, reach=None):
+def _ascend(
+    light: LightSamples,
+    tx: torch.Tensor,
+    rx: torch.Tensor,
+    optics: Transceiver,
+    iterations: int,
+    reach: torch.Tensor | None = None,
+):
     """Alternating ascent of eq. (4.7) from (tx, rx); returns (gain, tx, rx). Each transmitter direction's angles
     to the samples and G_D are computed once, for the receiver's move after it and the transmitter's next; the
     cells' :func:`cell_reach` once for all (``reach``)."""
