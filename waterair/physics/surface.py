@@ -113,12 +113,12 @@ def lattice_harmonic_sums(sea: Harmonics, centre, basis, grid, t, order: int):
 
     The phase is affine in the node: ψ(i, j) = ψ_c − g_i α − g_j β with ψ_c the centre's phase and α, β the
     wavenumber projected on the basis' columns, so that a e^{iψ(i, j)} = (a e^{iψ_c}) e^{−i g_i α} e^{−i g_j β}:
-    1 + 2n complex exponentials per harmonic instead of n² (docs/model.md §4.3), and on the uniform ``grid`` the
-    n per axis are powers of one (:func:`_power_factors`). Eager PyTorch sums over the harmonics as a matrix
-    product of the i-factors ``[n, K]`` and the j-factors ``[K, n]``, in real arithmetic and in chunks of seas, as
-    :func:`harmonic_sums`; compiled on a CPU, the factors are written once and inductor sums
-    their products in its own loop (:func:`_compiled_lattice_sums`); compiled on a GPU, one sine and cosine per node
-    and harmonic (:func:`harmonic_sums`).
+    1 + 2n complex exponentials per harmonic instead of n² (docs/model.md §4.3). Eager PyTorch takes each axis's n
+    as powers of one (:func:`_power_factors`) and sums over the harmonics as a matrix product of the i-factors
+    ``[n, K]`` and the j-factors ``[K, n]``, in real arithmetic and in chunks of seas, as :func:`harmonic_sums`;
+    compiled on a CPU, the factors are written once and inductor sums their products in its own loop
+    (:func:`_compiled_lattice_sums`); compiled on a GPU, one sine and cosine per node and harmonic
+    (:func:`harmonic_sums`).
     """
     if torch.compiler.is_compiling():
         if sea.omega.device.type == "cpu":
