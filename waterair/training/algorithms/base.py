@@ -96,7 +96,7 @@ def adam(cfg: DictConfig, actor_params: TensorDictBase, critic_params: TensorDic
     false): an eager DDPG update's backward and steps 1.25 ms instead of 1.75; a compiled update is faster with
     the plain one, whose step inductor fuses into its graph (2.6 ms against 3.0: dynamo leaves the fused kernel
     out)."""
-    fused = str(cfg.compile_update).lower() == "false"
+    fused = not cfg.compile_update  # as make_update reads it
     actor = torch.optim.Adam(list(actor_params.flatten_keys().values()), lr=cfg.actor.lr, fused=fused)
     critic = torch.optim.Adam(list(critic_params.flatten_keys().values()), lr=cfg.critic.lr, fused=fused)
     return actor, critic
