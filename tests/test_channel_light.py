@@ -4,7 +4,8 @@ import torch
 from conftest import F64, ends
 from test_channel_two_scale import two_scale
 
-from waterair.physics.channel import Transceiver, pointing, received_gain, upper_bound
+from waterair.physics.channel import LightSamples, Transceiver, pointed_gains, pointing, received_gain, upper_bound
+from waterair.physics.channel.light import paper_gains
 from waterair.physics.sea import sea_state
 from waterair.physics.surface import WaveSurface
 
@@ -31,3 +32,21 @@ def test_upper_bound_is_within_one_percent_of_a_brute_force_search():
         best = torch.maximum(best, gains.max(1).values)
     assert (best <= bound * 1.01).all()
     assert (bound > 0).all()
+
+
+def test_a_rays_gains_from_sines_and_cosines_are_the_papers_of_the_angles():
+    """pointed_gains (G_D and G_A of the angles' sines and cosines, as the bound's ascent evaluates them) against
+    paper_gains (eqs. (2) and (5) of the angles, the paper's one path bit for bit) on the two-scale light's nodes
+    as rays, at pointings across the beam and the field of view's edge: equal within float64 rounding."""
+    surface = WaveSurface.sample(sea_state(wind=12.0, spectrum="elfouhaily", n_dir=16), 8, seed=3, dtype=F64)
+    tx, rx = ends(0.5, 8)
+    light = two_scale(surface, tx, rx, 2.0, OPTICS)
+    rays = LightSamples(weight=light.weight, departure=light.departure, arrival=light.arrival, batch_size=light.shape)
+    _, best_tx, best_rx = upper_bound(rays, OPTICS)
+    for offset in (0.0, OPTICS.divergence, 0.3 * OPTICS.half_fov, 1.2 * OPTICS.half_fov):
+        tx_dir = pointing(best_tx[:, :2] + offset, up=True)
+        rx_dir = pointing(best_rx[:, :2] + offset, up=False)
+        paper = paper_gains(rays, tx_dir, rx_dir, OPTICS)
+        torch.testing.assert_close(pointed_gains(rays, tx_dir, rx_dir, OPTICS), paper, rtol=1e-12, atol=1e-300)
+        if offset < OPTICS.half_fov:
+            assert (paper.sum(-1) > 0).all()

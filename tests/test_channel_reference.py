@@ -30,7 +30,9 @@ noise became a stream per link (docs/environment.md, "Sensing"): the AMD recordi
 AMD machine compares those cases with the Intel recording within the tolerance (the new noise on this machine
 through AVX2 and AVX512: equal, or 8e-17 apart). The full channel on the measured-slope sea was recorded again
 on an AMD EPYC (Zen 4) alone when the eager lattice's per-axis factors became powers of one (within 1e-15 of
-the Intel recording it replaced): that machine's recording holds every case. Every other case is still the
+the Intel recording it replaced), and the full channel and the counting tracer on both seas again on an AMD EPYC
+(Zen 5) alone when the gains took the angles' sines and cosines instead of the angles (within 1.2e-15 of the
+recordings they replaced): the Zen 5 recording holds every case. Every other case is still the
 first recording: the paper's single path (`+experiment=paper`) among them. The two recordings of an AMD EPYC
 (AVX512, and AVX2 through ``ATEN_CPU_CAPABILITY=avx2``) predate the identity: their model and thread count were
 not kept, so no machine compares with them exactly. ``python tests/test_channel_reference.py [CASE ...]`` adds

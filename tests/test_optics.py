@@ -16,10 +16,12 @@ from waterair.physics.optics import (
     beam_divergence,
     critical_angle,
     departure_gain,
+    departure_gain_at,
     fresnel_transmittance,
     path_gain,
     peak_arrival_gain,
     refract,
+    sin_cos_between,
 )
 
 
@@ -150,6 +152,50 @@ def test_angle_between_is_accurate_for_tiny_angles():
     u = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64)
     v = torch.tensor([math.sin(1e-9), 0.0, math.cos(1e-9)], dtype=torch.float64)
     assert angle_between(u, v).item() == pytest.approx(1e-9, rel=1e-6)
+
+
+def unit_pairs(angles: torch.Tensor, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+    """Random unit vectors u and, for each, a unit v at exactly ``angles`` from it (rad, float64): u rotated by the
+    angle about a random axis across it."""
+    g = torch.Generator().manual_seed(seed)
+    u = torch.nn.functional.normalize(torch.randn(angles.shape[0], 3, generator=g, dtype=torch.float64), dim=-1)
+    across = torch.linalg.cross(u, torch.randn(angles.shape[0], 3, generator=g, dtype=torch.float64), dim=-1)
+    across = torch.nn.functional.normalize(across, dim=-1)
+    return u, torch.cos(angles)[:, None] * u + torch.sin(angles)[:, None] * across
+
+
+def test_the_sine_and_cosine_between_unit_vectors_are_the_angles():
+    """|u×v| and u·v of unit vectors built at known angles, from 1e-9 rad to π − 1e-9, are the angle's sine and
+    cosine; the angle's atan2 of them is angle_between's, bit for bit."""
+    angles = torch.cat(
+        (torch.tensor([1e-9, 1e-6]), torch.linspace(0.01, math.pi - 0.01, 200), torch.tensor([math.pi - 1e-6]))
+    )
+    u, v = unit_pairs(angles.double())
+    sin, cos = sin_cos_between(u, v)
+    torch.testing.assert_close(sin, torch.sin(angles.double()), rtol=1e-9, atol=1e-15)
+    torch.testing.assert_close(cos, torch.cos(angles.double()), rtol=0, atol=1e-15)
+    assert torch.equal(torch.atan2(sin, cos), angle_between(u, v))
+
+
+@pytest.mark.parametrize("divergence", [0.0005, 0.05])
+def test_the_gains_from_sine_and_cosine_are_the_papers_gains_of_the_angle(divergence):
+    """G_D and G_A of (sin α, cos α), what the full channel's ascent evaluates, against eqs. (2) and (5) of α written
+    here in float64 math, at angles across the beam, the field of view's edge and beyond a right angle."""
+    angles = torch.cat((torch.linspace(0.0, 3 * divergence, 60), torch.linspace(0.0, 2.0, 401))).double()
+    u, v = unit_pairs(angles, seed=1)
+    sin, cos = sin_cos_between(u, v)
+    wavelength, half_fov, n_c = 520e-9, math.radians(30), 1.5
+    spread = [1 + (wavelength * math.cos(a) / (math.pi * divergence**2)) ** 2 for a in angles.tolist()]
+    beam = [math.exp(-2 * math.sin(a) ** 2 / (divergence**2 * s)) for a, s in zip(angles.tolist(), spread, strict=True)]
+    field = [n_c**2 / math.sin(half_fov) ** 2 * math.cos(a) if a <= half_fov else 0.0 for a in angles.tolist()]
+    torch.testing.assert_close(departure_gain_at(sin, cos, divergence, wavelength), torch.tensor(beam).double())
+    alpha = torch.atan2(sin, cos)
+    torch.testing.assert_close(arrival_gain(alpha, half_fov, n_c, cos), torch.tensor(field).double())
+    steps = torch.full((*alpha.shape, 2), 0.01, dtype=torch.float64)
+    torch.testing.assert_close(
+        arrival_gain_over_cell(alpha, steps, half_fov, n_c, cos), arrival_gain_over_cell(alpha, steps, half_fov, n_c)
+    )
+    assert sum(value > 0 for value in field) > 100 and sum(value > 1e-3 for value in beam) > 40
 
 
 @pytest.mark.parametrize("widths", [(0.03, 0.01), (0.02, 0.02), (0.0, 0.05), (0.04, 0.0)])

@@ -145,9 +145,14 @@ def departure_gain(alpha_d: torch.Tensor, divergence: Scalar, wavelength: float)
         divergence: beam divergence ω_D (rad), a float, a 0-dim tensor or one per link ``[B]`` (:func:`per_link`).
         wavelength: wavelength λ (m).
     """
-    squared = divergence**2  # in float64 from a per-link tensor, as from a float, then in alpha_d's dtype
-    spread = 1.0 + (wavelength * torch.cos(alpha_d) / per_link(math.pi * squared, alpha_d)) ** 2
-    return torch.exp(-2.0 * torch.sin(alpha_d) ** 2 / (per_link(squared, alpha_d) * spread))
+    return departure_gain_at(torch.sin(alpha_d), torch.cos(alpha_d), divergence, wavelength)
+
+
+def departure_gain_at(sin_d: torch.Tensor, cos_d: torch.Tensor, divergence: Scalar, wavelength: float) -> torch.Tensor:
+    """:func:`departure_gain` from the sine and cosine of α_D (:func:`sin_cos_between`), without the angle."""
+    squared = divergence**2  # in float64 from a per-link tensor, as from a float, then in the angle's dtype
+    spread = 1.0 + (wavelength * cos_d / per_link(math.pi * squared, cos_d)) ** 2
+    return torch.exp(-2.0 * sin_d**2 / (per_link(squared, cos_d) * spread))
 
 
 def path_gain(d_water: torch.Tensor, d_air: torch.Tensor, attenuation: float) -> torch.Tensor:
@@ -162,28 +167,36 @@ def path_gain(d_water: torch.Tensor, d_air: torch.Tensor, attenuation: float) ->
     return torch.exp(-attenuation * d_water) / (d_water + d_air) ** 2
 
 
-def arrival_gain(alpha_a: torch.Tensor, half_fov: float, concentrator_index: float = 1.0) -> torch.Tensor:
+def arrival_gain(
+    alpha_a: torch.Tensor, half_fov: float, concentrator_index: float = 1.0, cos_a: torch.Tensor | None = None
+) -> torch.Tensor:
     """Receiver gain G_A = (n_c² / sin² ω_A) cos α_A inside the FOV, 0 outside (docs/model.md §4, paper eq. (5)).
 
     Args:
         alpha_a: angle between the receiver boresight and the reversed arriving ray (rad).
         half_fov: receiver half field of view ω_A (rad).
         concentrator_index: concentrator refractive index n_c (paper n2).
+        cos_a: cos α_A where the caller has it (:func:`sin_cos_between`); else taken of ``alpha_a``.
     """
     inside = alpha_a <= half_fov
-    gain = peak_arrival_gain(half_fov, concentrator_index) * torch.cos(alpha_a)
+    gain = peak_arrival_gain(half_fov, concentrator_index) * (torch.cos(alpha_a) if cos_a is None else cos_a)
     return torch.where(inside, gain, torch.zeros_like(gain))
 
 
 def arrival_gain_over_cell(
-    alpha_a: torch.Tensor, steps: torch.Tensor, half_fov: float, concentrator_index: float = 1.0
+    alpha_a: torch.Tensor,
+    steps: torch.Tensor,
+    half_fov: float,
+    concentrator_index: float = 1.0,
+    cos_a: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """G_A averaged over a lattice node's cell (docs/model.md §4.3, "The field of view's edge"): (n_c² / sin² ω_A)
     cos α_A times the share of the cell seen within the field of view, where α_A changes linearly across the
     cell by ``steps`` ``[..., 2]`` (rad) along its two axes: P(α_A + a s + b t ≤ ω_A) for s, t uniform on
-    [-1/2, 1/2]. With no change across the cell (steps 0) it is :func:`arrival_gain`, bit for bit."""
+    [-1/2, 1/2]. With no change across the cell (steps 0) it is :func:`arrival_gain`, bit for bit. ``cos_a``: as
+    :func:`arrival_gain`'s."""
     inside = _cell_share(half_fov - alpha_a, steps[..., 0].abs(), steps[..., 1].abs())
-    gain = peak_arrival_gain(half_fov, concentrator_index) * torch.cos(alpha_a)
+    gain = peak_arrival_gain(half_fov, concentrator_index) * (torch.cos(alpha_a) if cos_a is None else cos_a)
     return torch.where(inside > 0, gain * inside, torch.zeros_like(gain))
 
 
@@ -209,8 +222,14 @@ def peak_arrival_gain(half_fov: float, concentrator_index: float = 1.0) -> float
 
 def angle_between(u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
     """Angle (rad) between unit vectors ``[..., 3]``, accurate near 0 and π (atan2 of |u×v|, u·v)."""
-    cross = torch.linalg.vector_norm(torch.linalg.cross(u, v, dim=-1), dim=-1)
-    return torch.atan2(cross, (u * v).sum(-1))
+    return torch.atan2(*sin_cos_between(u, v))
+
+
+def sin_cos_between(u: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The sine and cosine of the angle between unit vectors ``[..., 3]``: |u×v| and u·v, what
+    :func:`angle_between` takes the atan2 of. Where a gain needs only them, no atan2, sine or cosine is taken
+    (the full channel's ascent evaluates them at every node, docs/benchmarks.md "Channels")."""
+    return torch.linalg.vector_norm(torch.linalg.cross(u, v, dim=-1), dim=-1), (u * v).sum(-1)
 
 
 def unit_vector(v: torch.Tensor) -> torch.Tensor:

@@ -31,7 +31,7 @@ import torch
 from waterair.core.validation import check_choice, check_range
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples, weighted_direction
-from waterair.physics.optics import angle_between, arrival_gain, departure_gain, peak_arrival_gain
+from waterair.physics.optics import arrival_gain, departure_gain_at, peak_arrival_gain, sin_cos_between
 
 BEACON_POINTINGS = ("receiver", "nadir")
 """Where the beacon aims: along the drone's receiver boresight (one gimbal for both), or straight down."""
@@ -95,10 +95,10 @@ def read_beacon(
     the laser points at: :meth:`~.model.ChannelModel.unpointed_light`), the transmitter pointing ``tx_dir`` (up,
     the detector's axis) and the receiver boresight ``rx_dir`` (down) ``[B, 3]``."""
     axis = beacon.axis(rx_dir)
-    emitted = departure_gain(angle_between(axis.unsqueeze(1), -light.arrival), beacon.divergence, beacon.wavelength)
-    accepted = arrival_gain(
-        angle_between(tx_dir.unsqueeze(1), light.departure), beacon.half_fov, beacon.concentrator_index
-    )
+    sin_b, cos_b = sin_cos_between(axis.unsqueeze(1), -light.arrival)
+    emitted = departure_gain_at(sin_b, cos_b, beacon.divergence, beacon.wavelength)
+    sin_t, cos_t = sin_cos_between(tx_dir.unsqueeze(1), light.departure)
+    accepted = arrival_gain(torch.atan2(sin_t, cos_t), beacon.half_fov, beacon.concentrator_index, cos_t)
     shares = ((optics.n_water / optics.n_air) ** 2) * light.weight * emitted * accepted
     gain = shares.sum(-1)
     return BeaconReading(gain, weighted_direction(shares, light.departure, tx_dir), gain > 0)

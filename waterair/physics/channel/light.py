@@ -28,7 +28,9 @@ from waterair.physics.optics import (
     arrival_gain,
     arrival_gain_over_cell,
     departure_gain,
+    departure_gain_at,
     peak_arrival_gain,
+    sin_cos_between,
 )
 
 UPPER_BOUND_ITERATIONS = 4
@@ -93,7 +95,7 @@ def receive(
     ``copies`` = k: the light the bound is searched over is the same for link i and link i + B / k (k copies
     of the links, pointed differently), so the search runs on the first B / k links and is repeated.
     """
-    shares = pointed_gains(light, tx_dir, rx_dir, optics)
+    shares = paper_gains(light, tx_dir, rx_dir, optics) if along_path else pointed_gains(light, tx_dir, rx_dir, optics)
     gain = shares.sum(-1)
     if along_path:
         departure, arrival = light.departure[:, 0], light.arrival[:, 0]
@@ -128,9 +130,17 @@ def receive(
 
 def pointed_gains(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
     """Each sample's share ``[B, N]`` of eq. (4.7) (1/m²) for pointings tx_dir (up), rx_dir (down) ``[B, 3]``."""
-    alpha_d = angle_between(tx_dir.unsqueeze(1), light.departure)
-    g_d = departure_gain(alpha_d, optics.divergence, optics.wavelength)
+    sin_d, cos_d = sin_cos_between(tx_dir.unsqueeze(1), light.departure)
+    g_d = departure_gain_at(sin_d, cos_d, optics.divergence, optics.wavelength)
     return light.weight * g_d * arrival_gains(light, rx_dir, optics)
+
+
+def paper_gains(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
+    """:func:`pointed_gains` as the paper writes G_D and G_A, of the angles α_D and α_A (eqs. (2), (5)), rays alone:
+    the paper's one path, bit for bit (:func:`~waterair.physics.channel.single_path.channel_gain`)."""
+    g_d = departure_gain(angle_between(tx_dir.unsqueeze(1), light.departure), optics.divergence, optics.wavelength)
+    alpha_a = angle_between(rx_dir.unsqueeze(1), -light.arrival)
+    return light.weight * g_d * arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index)
 
 
 def arrival_gains(
@@ -140,14 +150,15 @@ def arrival_gains(
     lattice node's cell where ``light.cell`` is given (docs/model.md §4.3, "The field of view's edge"). ``reach``:
     :func:`cell_reach` of ``light.cell``, where the caller evaluates many boresights on one light."""
     boresight = rx_dir.unsqueeze(1)
-    alpha_a = angle_between(boresight, -light.arrival)
+    sin_a, cos_a = sin_cos_between(boresight, -light.arrival)
+    alpha_a = torch.atan2(sin_a, cos_a)  # the field of view's margin is an angle
     if light.cell is None:
-        return arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index)
+        return arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index, cos_a)
     # dα_A = (boresight · du2) / sin α_A across the cell, no more than |du2| (the angle between unit vectors)
     change = (boresight.unsqueeze(-2) * light.cell).sum(-1)
     largest = cell_reach(light.cell) if reach is None else reach
-    steps = (change / torch.sin(alpha_a).unsqueeze(-1).clamp(min=1e-12)).clamp(-largest, largest)
-    return arrival_gain_over_cell(alpha_a, steps, optics.half_fov, optics.concentrator_index)
+    steps = (change / sin_a.unsqueeze(-1).clamp(min=1e-12)).clamp(-largest, largest)
+    return arrival_gain_over_cell(alpha_a, steps, optics.half_fov, optics.concentrator_index, cos_a)
 
 
 def cell_reach(cell: torch.Tensor) -> torch.Tensor:
@@ -238,21 +249,21 @@ def _ascend(
     iterations: int,
     reach: torch.Tensor | None = None,
 ):
-    """Alternating ascent of eq. (4.7) from (tx, rx); returns (gain, tx, rx). Each transmitter direction's angles
+    """Alternating ascent of eq. (4.7) from (tx, rx); returns (gain, tx, rx). Each transmitter direction's cosines
     to the samples and G_D are computed once, for the receiver's move after it and the transmitter's next; the
     cells' :func:`cell_reach` once for all (``reach``)."""
 
-    def departures(tx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        alpha_d = angle_between(tx.unsqueeze(1), light.departure)
-        return alpha_d, departure_gain(alpha_d, optics.divergence, optics.wavelength)
+    def departures(tx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:  # cos α_D and G_D
+        sin_d, cos_d = sin_cos_between(tx.unsqueeze(1), light.departure)
+        return cos_d, departure_gain_at(sin_d, cos_d, optics.divergence, optics.wavelength)
 
     def shares(g_d: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:  # as pointed_gains, with G_D already known
         return light.weight * g_d * arrival_gains(light, rx, optics, reach)
 
-    alpha_d, g_d = departures(tx)
+    cos_d, g_d = departures(tx)
     for _ in range(iterations):
-        tx = weighted_direction(shares(g_d, rx) * torch.cos(alpha_d), light.departure, tx)
-        alpha_d, g_d = departures(tx)
+        tx = weighted_direction(shares(g_d, rx) * cos_d, light.departure, tx)
+        cos_d, g_d = departures(tx)
         rx = weighted_direction(light.weight * g_d, -light.arrival, rx)
     return shares(g_d, rx).sum(-1), tx, rx  # G (eq. 4.7) at (tx, rx)
 
