@@ -85,3 +85,20 @@ def test_the_summary_sets_the_flat_bases_ratio_against_its_target(tmp_path):
     assert summary_lines(tmp_path)[2:] == [
         "| SB3's best seconds to 0.95 of the bound / ours_flat_base's | at least 9.0 | ≥ 10, compiles included | no |"
     ]
+
+
+@pytest.mark.parametrize("installed", [False, True])
+def test_the_suite_says_first_when_stable_baselines3_is_missing(monkeypatch, capsys, tmp_path, installed):
+    """Without Stable-Baselines3 (it is the ``bench`` extra, not a dependency) the quality suite's first line says
+    that its rows are left out and how to install it; with it, no such line."""
+    from waterair.bench import __main__ as cli
+
+    monkeypatch.setattr(cli, "sb3_installed", lambda: installed)
+    monkeypatch.setattr(quality, "ours", lambda frames, chunk, target, overrides: fake_runs((10.0, 0.96)))
+    monkeypatch.setattr(quality, "sb3", lambda name, *args: fake_runs((100.0, 0.96)) if installed else None)
+    assert cli.main(["quality", "--frames", "1600", "--flat-frames", "1600", "--out", str(tmp_path / "q.json")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert (lines[0] == cli.SB3_MISSING) is (not installed)
+    assert "pip install -e '.[bench]'" in cli.SB3_MISSING
+    ratios = [key for key in json.loads((tmp_path / "q.json").read_text()) if "_over_" in key]
+    assert bool(ratios) is installed

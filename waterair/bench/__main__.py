@@ -45,6 +45,8 @@ from waterair.bench.evaluate import bench_evaluate, evaluate_table
 from waterair.bench.montecarlo import MONTECARLO_HEADER, bench_montecarlo, montecarlo_table
 from waterair.bench.physics import bench_physics, physics_table
 from waterair.bench.quality import CHUNK, bench_quality, quality_table
+from waterair.bench.sb3 import MISSING as SB3_MISSING
+from waterair.bench.sb3 import installed as sb3_installed
 from waterair.bench.summary import main as summary
 from waterair.bench.training import bench_training, training_table
 from waterair.core.devices import resolve_device
@@ -154,6 +156,8 @@ def main(argv: list[str] | None = None) -> int:
         sea = sea_state("jonswap", wind=args.wind) if args.suite == "physics" else None
     except ValueError as error:
         parser.exit(2, f"error: {error}\n")
+    if args.suite in ("training", "quality") and not sb3_installed():
+        print(SB3_MISSING, flush=True)
     if args.suite == "training":
         record = {"machine": machine(torch.device("cpu"), torch.float32)}
         record.update(

@@ -1,11 +1,13 @@
 """Stable-Baselines3 DDPG and PPO on our Gymnasium view, matched to a training config: the reference
 pipelines the training and time-to-quality suites compare with.
 
-Stable-Baselines3 is not a dependency: :func:`sb3_ddpg` and :func:`sb3_ppo` return None when it does not import.
+Stable-Baselines3 is not a dependency (the ``bench`` extra, which ``make bench`` installs): :func:`sb3_ddpg` and
+:func:`sb3_ppo` return None when it does not import, and :data:`MISSING` says so before a suite starts.
 """
 
 from __future__ import annotations
 
+import importlib.util
 from fractions import Fraction
 
 import torch
@@ -14,6 +16,17 @@ from tensordict.nn import TensorDictModuleBase
 
 from waterair.envs.rewards import Reward
 from waterair.training.builders import env_config
+
+MISSING = (
+    "Stable-Baselines3 is not installed: the suite leaves out its rows "
+    "(pip install -e '.[bench]', or make bench, installs it)"
+)
+"""The line a suite that compares with Stable-Baselines3 prints first when it is missing (:func:`installed`)."""
+
+
+def installed() -> bool:
+    """Whether Stable-Baselines3 imports."""
+    return importlib.util.find_spec("stable_baselines3") is not None
 
 
 def sb3_ddpg(cfg: DictConfig, seed: int = 0):
