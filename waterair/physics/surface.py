@@ -140,12 +140,10 @@ def lattice_nodes(centre: torch.Tensor, basis: torch.Tensor, grid: torch.Tensor)
 def _node_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor):
     """The lattice's per-axis factors, each ``[B, n, K]``: the i-factors a e^{iψ_c} e^{−i g_i α} (real, imaginary)
     and the j-factors e^{−i g_j β} = cos − i sin (cos, sin), a sine and a cosine per axis, node and harmonic."""
-    omega, phase, kx, ky, amplitude, centre, basis, t = inputs
-    psi = omega * t.unsqueeze(-1) + phase - kx * centre[:, :1] - ky * centre[:, 1:]
+    amplitude = inputs[4]
+    projected, psi = _projection_and_phase(inputs)
     c_re, c_im = (amplitude * torch.cos(psi)).unsqueeze(1), (amplitude * torch.sin(psi)).unsqueeze(1)  # a e^{iψ_c}
-    # (g_i α, g_j β) [B, 2, n, K]: the wavenumber projected on each basis column, at each grid coordinate
-    projected = kx.unsqueeze(1) * basis[:, 0, :, None] + ky.unsqueeze(1) * basis[:, 1, :, None]
-    angle = projected.unsqueeze(2) * grid[:, None]
+    angle = projected.unsqueeze(2) * grid[:, None]  # (g_i α, g_j β) [B, 2, n, K], at each grid coordinate
     cos_a, sin_a = torch.cos(angle[:, 0]), torch.sin(angle[:, 0])
     real, imaginary = c_re * cos_a + c_im * sin_a, c_im * cos_a - c_re * sin_a
     return real, imaginary, torch.cos(angle[:, 1]), torch.sin(angle[:, 1])
@@ -160,11 +158,11 @@ def _power_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor, rows: tor
     (:func:`_powers`), as for β. Eager, the lattice's sums at 64 links take about 20 % less time than with
     :func:`_node_factors`; compiled on a CPU they are bound by writing the factors, not by their sines, and were
     no faster (docs/benchmarks.md, "Lattice sums"). Returns the j-factors' cos and sin, views of ``columns``."""
-    omega, phase, kx, ky, amplitude, centre, basis, t = inputs
-    nodes, harmonics = grid.shape[0], kx.shape[-1]
+    amplitude = inputs[4]
+    nodes, harmonics = grid.shape[0], amplitude.shape[-1]
     middle = nodes // 2
-    projected = kx.unsqueeze(1) * basis[:, 0, :, None] + ky.unsqueeze(1) * basis[:, 1, :, None]  # (α, β) [B, 2, K]
-    psi = omega * t.unsqueeze(-1) + phase - kx * centre[:, :1] - ky * centre[:, 1:] - grid[middle] * projected.sum(1)
+    projected, psi = _projection_and_phase(inputs)
+    psi = psi - grid[middle] * projected.sum(1)  # the middle node's phase
     c_re, c_im = (amplitude * torch.cos(psi)).unsqueeze(1), (amplitude * torch.sin(psi)).unsqueeze(1)  # at (m, m)
     cos_d, sin_d = _powers(projected * ((grid[-1] - grid[0]) / (nodes - 1)), max(middle, nodes - 1 - middle))
     sin_d += [-v for v in sin_d[:0:-1]]  # sin(−d x) at index −d
@@ -178,6 +176,14 @@ def _power_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor, rows: tor
     torch.stack([cos_d[abs(d)][:, 1] for d in offsets], dim=1, out=cos_b)
     torch.stack([sin_d[d][:, 1] for d in offsets], dim=1, out=sin_b)
     return cos_b, sin_b
+
+
+def _projection_and_phase(inputs: Sequence[torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
+    """The wavenumber projected on each basis column, (α, β) ``[B, 2, K]``, and the phase ψ_c at the lattice's
+    centre ``[B, K]`` (:func:`lattice_harmonic_sums`)."""
+    omega, phase, kx, ky, _, centre, basis, t = inputs
+    projected = kx.unsqueeze(1) * basis[:, 0, :, None] + ky.unsqueeze(1) * basis[:, 1, :, None]
+    return projected, omega * t.unsqueeze(-1) + phase - kx * centre[:, :1] - ky * centre[:, 1:]
 
 
 def _powers(angle: torch.Tensor, highest: int) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
