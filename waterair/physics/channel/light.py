@@ -16,6 +16,7 @@ pointings (:func:`upper_bound`), and the quadrant detector reads the light's cen
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import NamedTuple
 
@@ -143,12 +144,13 @@ def paper_gains(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor,
 
 
 Components = tuple[torch.Tensor, torch.Tensor, torch.Tensor]
-"""Vectors by component (x, y, z): three tensors, ``[B, N]`` for a field of samples, ``[B, 1]`` for one a link."""
+"""Vectors by component (x, y, z): three tensors, ``[B, N]`` for a field of samples, ``[B, 1]`` for one a link
+(``[S, B, 1]`` for S a link, as the bound's ascent's starts)."""
 
 
 class SamplesByComponent(NamedTuple):
     """A :class:`LightSamples` by component, each a contiguous ``[B, N]`` tensor: the layout the gains and the
-    bound's ascent loop over (compiled, the ascent runs 2.5× faster than over ``[B, N, 3]``; docs/benchmarks.md
+    bound's ascent loop over (compiled, the ascent runs 4× faster than over ``[B, N, 3]``; docs/benchmarks.md
     "Channels"). ``incoming`` −u2 (from the receiver toward the surface); ``cells`` each axis's change of u2
     across a node's cell, and ``reach`` its length |du2| (rad: the largest change of the arrival angle across the
     cell, whatever the boresight); both None for rays."""
@@ -177,12 +179,14 @@ def _planes(vectors: torch.Tensor) -> Components:
 
 
 def columns(direction: torch.Tensor) -> Components:
-    """One vector a link ``[B, 3]`` by component, ``[B, 1]`` each (to broadcast against ``[B, N]`` samples)."""
-    return direction[:, 0:1], direction[:, 1:2], direction[:, 2:3]
+    """Directions ``[B, 3]`` (or ``[S, B, 3]``) by component, ``[B, 1]`` (``[S, B, 1]``) each, to broadcast against
+    samples ``[B, N]``."""
+    return direction[..., 0:1], direction[..., 1:2], direction[..., 2:3]
 
 
 def departure_gains(samples: SamplesByComponent, tx_dir: torch.Tensor, optics: Transceiver):
-    """cos α_D and G_D ``[B, N]`` of each sample for the transmitter direction ``tx_dir`` ``[B, 3]``."""
+    """cos α_D and G_D ``[B, N]`` (``[S, B, N]``) of each sample for the transmitter direction ``tx_dir`` ``[B, 3]``
+    (``[S, B, 3]``)."""
     sin_d, cos_d = sin_cos_of_components(columns(tx_dir), samples.departure)
     return cos_d, departure_gain_at(sin_d, cos_d, optics.divergence, optics.wavelength)
 
@@ -233,10 +237,10 @@ def upper_bound(
         mean_direction(samples.weight, samples.departure, light.departure[:, 0]),
         mean_direction(samples.weight, samples.incoming, -light.arrival[:, 0]),
     )
-    results = [_ascend(samples, tx, rx, optics, iterations) for tx, rx in (mean, brightest(light))]
-    (gain_a, tx_a, rx_a), (gain_b, tx_b, rx_b) = results
-    better = (gain_b > gain_a).unsqueeze(-1)
-    return torch.maximum(gain_a, gain_b), torch.where(better, tx_b, tx_a), torch.where(better, rx_b, rx_a)
+    tx, rx = (torch.stack(pair) for pair in zip(mean, brightest(light), strict=True))  # [2, B, 3] each
+    gain, tx, rx = _ascend(samples, tx, rx, _per_start(optics), iterations)
+    better = (gain[1] > gain[0]).unsqueeze(-1)
+    return torch.maximum(gain[0], gain[1]), torch.where(better, tx[1], tx[0]), torch.where(better, rx[1], rx[0])
 
 
 def sliced(light: LightSamples, rows: slice = slice(None), samples: slice = slice(None)) -> LightSamples:
@@ -284,8 +288,10 @@ def light_centroid(
 
 
 def _ascend(samples: SamplesByComponent, tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver, iterations: int):
-    """Alternating ascent of eq. (4.7) from (tx, rx); returns (gain, tx, rx). Each transmitter direction's cosines
-    to the samples and G_D are computed once, for the receiver's move after it and the transmitter's next."""
+    """Alternating ascent of eq. (4.7) from each start (tx, rx) ``[S, B, 3]``, all in one batch (half the operations
+    of one start after the other, which bound an eager step at one link; ``optics`` :func:`_per_start`); returns
+    (gain ``[S, B]``, tx, rx). Each transmitter direction's cosines to the samples and G_D are computed once, for
+    the receiver's move after it and the transmitter's next."""
     cos_d, g_d = departure_gains(samples, tx, optics)
     for _ in range(iterations):
         shares = samples.weight * g_d * arrival_gains(samples, rx, optics)
@@ -295,18 +301,25 @@ def _ascend(samples: SamplesByComponent, tx: torch.Tensor, rx: torch.Tensor, opt
     return (samples.weight * g_d * arrival_gains(samples, rx, optics)).sum(-1), tx, rx  # G (eq. 4.7) at (tx, rx)
 
 
+def _per_start(optics: Transceiver) -> Transceiver:
+    """``optics`` for pointings ``[S, B, 3]``: a divergence per link ``[B]`` as ``[B, 1]``."""
+    if isinstance(optics.divergence, torch.Tensor) and optics.divergence.dim() == 1:
+        return dataclasses.replace(optics, divergence=optics.divergence.unsqueeze(-1))
+    return optics
+
+
 def weighted_direction(weights: torch.Tensor, directions: torch.Tensor, fallback: torch.Tensor) -> torch.Tensor:
     """The unit weighted mean of ``directions`` ``[B, N, 3]``, or ``fallback`` ``[B, 3]`` where it vanishes."""
     return _unit_or((weights.unsqueeze(-1) * directions).sum(1), fallback)
 
 
 def mean_direction(weights: torch.Tensor, directions: Components, fallback: torch.Tensor) -> torch.Tensor:
-    """:func:`weighted_direction` of directions by component (``[B, N]`` each), ``[B, 3]``."""
-    return _unit_or(torch.stack([(weights * component).sum(1) for component in directions], -1), fallback)
+    """:func:`weighted_direction` of directions by component (``[..., N]`` each), ``[..., 3]``."""
+    return _unit_or(torch.stack([(weights * component).sum(-1) for component in directions], -1), fallback)
 
 
 def _unit_or(total: torch.Tensor, fallback: torch.Tensor) -> torch.Tensor:
-    """``total`` ``[B, 3]`` over its length, or ``fallback`` where it vanishes."""
+    """``total`` ``[..., 3]`` over its length, or ``fallback`` where it vanishes."""
     norm = torch.linalg.vector_norm(total, dim=-1, keepdim=True)
     tiny = torch.finfo(total.dtype).tiny
     return torch.where(norm > math.sqrt(tiny), total / norm.clamp(min=math.sqrt(tiny)), fallback)
