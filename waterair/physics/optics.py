@@ -228,7 +228,7 @@ def angle_between(u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
 def sin_cos_between(u: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """The sine and cosine of the angle between unit vectors ``[..., 3]``: |u×v| and u·v, what
     :func:`angle_between` takes the atan2 of. Where a gain needs only them, no atan2, sine or cosine is taken
-    (the full channel's ascent evaluates them at every node, docs/benchmarks.md "Channels")."""
+    (:func:`sin_cos_of_components` where the vectors are held by component)."""
     return torch.linalg.vector_norm(torch.linalg.cross(u, v, dim=-1), dim=-1), (u * v).sum(-1)
 
 
@@ -240,7 +240,14 @@ def sin_cos_of_components(
     ``[B, N]`` planes; ``[B, N, 3]`` vectors compile to loops several times slower, docs/benchmarks.md
     "Channels")."""
     cross = (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
-    return torch.sqrt(cross[0] ** 2 + cross[1] ** 2 + cross[2] ** 2), u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+    return torch.sqrt(cross[0] ** 2 + cross[1] ** 2 + cross[2] ** 2), dot_of_components(u, v)
+
+
+def dot_of_components(
+    u: tuple[torch.Tensor, torch.Tensor, torch.Tensor], v: tuple[torch.Tensor, torch.Tensor, torch.Tensor]
+) -> torch.Tensor:
+    """u · v of vectors given by their components (:func:`sin_cos_of_components`)."""
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
 
 
 def unit_vector(v: torch.Tensor) -> torch.Tensor:

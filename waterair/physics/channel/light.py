@@ -30,6 +30,7 @@ from waterair.physics.optics import (
     arrival_gain_over_cell,
     departure_gain,
     departure_gain_at,
+    dot_of_components,
     peak_arrival_gain,
     sin_cos_of_components,
 )
@@ -203,15 +204,10 @@ def arrival_gains(samples: SamplesByComponent, rx_dir: torch.Tensor, optics: Tra
     across = sin_a.clamp(min=1e-12)
     (cell_s, cell_t), (reach_s, reach_t) = samples.cells, samples.reach
     steps = (
-        (_dot(boresight, cell_s) / across).clamp(-reach_s, reach_s),
-        (_dot(boresight, cell_t) / across).clamp(-reach_t, reach_t),
+        (dot_of_components(boresight, cell_s) / across).clamp(-reach_s, reach_s),
+        (dot_of_components(boresight, cell_t) / across).clamp(-reach_t, reach_t),
     )
     return arrival_gain_over_cell(alpha_a, steps, optics.half_fov, optics.concentrator_index, cos_a)
-
-
-def _dot(u: Components, v: Components) -> torch.Tensor:
-    """u · v by component."""
-    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
 
 
 def received_gain(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
