@@ -50,3 +50,18 @@ def test_a_rays_gains_from_sines_and_cosines_are_the_papers_of_the_angles():
         torch.testing.assert_close(pointed_gains(rays, tx_dir, rx_dir, OPTICS), paper, rtol=1e-12, atol=1e-300)
         if offset < OPTICS.half_fov:
             assert (paper.sum(-1) > 0).all()
+
+
+def test_the_bound_with_a_divergence_per_link_is_each_links_own_bound():
+    """The bound's ascent runs all links in one batch: with a divergence per link (5 to 80 mrad) each link's bound
+    and pointings are what the link alone, with its divergence as a number, gives (float64)."""
+    surface = WaveSurface.sample(sea_state(wind=12.0, spectrum="elfouhaily", n_dir=16), 6, seed=4, dtype=F64)
+    tx, rx = ends(0.5, 6)
+    light = two_scale(surface, tx, rx, 3.0, OPTICS)
+    divergences = torch.tensor([0.005, 0.01, 0.02, 0.04, 0.06, 0.08], dtype=F64)
+    together = upper_bound(light, Transceiver(divergence=divergences))
+    for link, divergence in enumerate(divergences.tolist()):
+        alone = upper_bound(light[link : link + 1], Transceiver(divergence=divergence))
+        for got, expected in zip(together, alone, strict=True):
+            torch.testing.assert_close(got[link : link + 1], expected, rtol=1e-12, atol=1e-300)
+    assert len({round(value, 12) for value in together[0].tolist()}) == 6  # the divergences made a difference
