@@ -53,8 +53,8 @@ def test_a_rays_gains_from_sines_and_cosines_are_the_papers_of_the_angles():
 
 
 def test_the_bound_with_a_divergence_per_link_is_each_links_own_bound():
-    """The bound's ascent runs all links in one batch: with a divergence per link (5 to 80 mrad) each link's bound
-    and pointings are what the link alone, with its divergence as a number, gives (float64)."""
+    """The bound's ascent runs its two starts for all links in one batch: with a divergence per link (5 to 80 mrad)
+    each link's bound and pointings are what the link alone, with its divergence as a number, gives (float64)."""
     surface = WaveSurface.sample(sea_state(wind=12.0, spectrum="elfouhaily", n_dir=16), 6, seed=4, dtype=F64)
     tx, rx = ends(0.5, 6)
     light = two_scale(surface, tx, rx, 3.0, OPTICS)

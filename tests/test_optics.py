@@ -22,6 +22,7 @@ from waterair.physics.optics import (
     peak_arrival_gain,
     refract,
     sin_cos_between,
+    sin_cos_of_components,
 )
 
 
@@ -166,7 +167,8 @@ def unit_pairs(angles: torch.Tensor, seed: int = 0) -> tuple[torch.Tensor, torch
 
 def test_the_sine_and_cosine_between_unit_vectors_are_the_angles():
     """|u×v| and u·v of unit vectors built at known angles, from 1e-9 rad to π − 1e-9, are the angle's sine and
-    cosine; the angle's atan2 of them is angle_between's, bit for bit."""
+    cosine, of ``[n, 3]`` vectors and of vectors by component; the angle's atan2 of them is angle_between's, bit
+    for bit."""
     angles = torch.cat(
         (torch.tensor([1e-9, 1e-6]), torch.linspace(0.01, math.pi - 0.01, 200), torch.tensor([math.pi - 1e-6]))
     )
@@ -175,6 +177,9 @@ def test_the_sine_and_cosine_between_unit_vectors_are_the_angles():
     torch.testing.assert_close(sin, torch.sin(angles.double()), rtol=1e-9, atol=1e-15)
     torch.testing.assert_close(cos, torch.cos(angles.double()), rtol=0, atol=1e-15)
     assert torch.equal(torch.atan2(sin, cos), angle_between(u, v))
+    sin, cos = sin_cos_of_components(u.unbind(-1), v.unbind(-1))
+    torch.testing.assert_close(sin, torch.sin(angles.double()), rtol=1e-9, atol=1e-15)
+    torch.testing.assert_close(cos, torch.cos(angles.double()), rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize("divergence", [0.0005, 0.05])
@@ -191,7 +196,7 @@ def test_the_gains_from_sine_and_cosine_are_the_papers_gains_of_the_angle(diverg
     torch.testing.assert_close(departure_gain_at(sin, cos, divergence, wavelength), torch.tensor(beam).double())
     alpha = torch.atan2(sin, cos)
     torch.testing.assert_close(arrival_gain(alpha, half_fov, n_c, cos), torch.tensor(field).double())
-    steps = torch.full((*alpha.shape, 2), 0.01, dtype=torch.float64)
+    steps = (torch.full_like(alpha, 0.01), torch.full_like(alpha, -0.01))
     torch.testing.assert_close(
         arrival_gain_over_cell(alpha, steps, half_fov, n_c, cos), arrival_gain_over_cell(alpha, steps, half_fov, n_c)
     )
@@ -205,7 +210,7 @@ def test_the_field_of_view_averaged_over_a_cell_is_the_share_of_the_cell_within_
     across the edge; outside the cell's reach it is a ray's G_A."""
     a, b = widths
     alpha = torch.linspace(0.10, 0.24, 57, dtype=torch.float64)
-    got = arrival_gain_over_cell(alpha, torch.tensor([a, b], dtype=torch.float64).expand(57, 2), 0.17, 1.2)
+    got = arrival_gain_over_cell(alpha, (torch.full_like(alpha, a), torch.full_like(alpha, -b)), 0.17, 1.2)
     s = (torch.arange(20_000, dtype=torch.float64) + 0.5) / 20_000 - 0.5
     left = 0.17 - alpha.unsqueeze(-1) - a * s  # what q t must stay below, for each s
     inner = (left / b + 0.5).clamp(0.0, 1.0) if b > 0 else (left >= 0).double()
@@ -214,6 +219,5 @@ def test_the_field_of_view_averaged_over_a_cell_is_the_share_of_the_cell_within_
     torch.testing.assert_close(got, expected, rtol=0, atol=1e-4 * peak_arrival_gain(0.17, 1.2))
     far = (alpha - 0.17).abs() > (a + b) / 2 + 1e-12
     assert torch.equal(got[far], arrival_gain(alpha, 0.17, 1.2)[far])
-    assert torch.equal(
-        arrival_gain_over_cell(alpha, torch.zeros(57, 2, dtype=torch.float64), 0.17), arrival_gain(alpha, 0.17)
-    )
+    still = (torch.zeros_like(alpha), torch.zeros_like(alpha))
+    assert torch.equal(arrival_gain_over_cell(alpha, still, 0.17), arrival_gain(alpha, 0.17))

@@ -185,17 +185,17 @@ def arrival_gain(
 
 def arrival_gain_over_cell(
     alpha_a: torch.Tensor,
-    steps: torch.Tensor,
+    steps: tuple[torch.Tensor, torch.Tensor],
     half_fov: float,
     concentrator_index: float = 1.0,
     cos_a: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """G_A averaged over a lattice node's cell (docs/model.md §4.3, "The field of view's edge"): (n_c² / sin² ω_A)
     cos α_A times the share of the cell seen within the field of view, where α_A changes linearly across the
-    cell by ``steps`` ``[..., 2]`` (rad) along its two axes: P(α_A + a s + b t ≤ ω_A) for s, t uniform on
-    [-1/2, 1/2]. With no change across the cell (steps 0) it is :func:`arrival_gain`, bit for bit. ``cos_a``: as
-    :func:`arrival_gain`'s."""
-    inside = _cell_share(half_fov - alpha_a, steps[..., 0].abs(), steps[..., 1].abs())
+    cell by ``steps`` (a, b) (rad, each shaped as ``alpha_a``) along its two axes: P(α_A + a s + b t ≤ ω_A) for
+    s, t uniform on [-1/2, 1/2]. With no change across the cell (steps 0) it is :func:`arrival_gain`, bit for
+    bit. ``cos_a``: as :func:`arrival_gain`'s."""
+    inside = _cell_share(half_fov - alpha_a, steps[0].abs(), steps[1].abs())
     gain = peak_arrival_gain(half_fov, concentrator_index) * (torch.cos(alpha_a) if cos_a is None else cos_a)
     return torch.where(inside > 0, gain * inside, torch.zeros_like(gain))
 
@@ -228,8 +228,26 @@ def angle_between(u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
 def sin_cos_between(u: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """The sine and cosine of the angle between unit vectors ``[..., 3]``: |u×v| and u·v, what
     :func:`angle_between` takes the atan2 of. Where a gain needs only them, no atan2, sine or cosine is taken
-    (the full channel's ascent evaluates them at every node, docs/benchmarks.md "Channels")."""
+    (:func:`sin_cos_of_components` where the vectors are held by component)."""
     return torch.linalg.vector_norm(torch.linalg.cross(u, v, dim=-1), dim=-1), (u * v).sum(-1)
+
+
+def sin_cos_of_components(
+    u: tuple[torch.Tensor, torch.Tensor, torch.Tensor], v: tuple[torch.Tensor, torch.Tensor, torch.Tensor]
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`sin_cos_between` of unit vectors given by their components (x, y, z), each a tensor, all broadcasting
+    together: the layout in which the full channel's gains loop over its nodes (components as contiguous
+    ``[B, N]`` planes; ``[B, N, 3]`` vectors compile to loops several times slower, docs/benchmarks.md
+    "Channels")."""
+    cross = (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
+    return torch.sqrt(cross[0] ** 2 + cross[1] ** 2 + cross[2] ** 2), dot_of_components(u, v)
+
+
+def dot_of_components(
+    u: tuple[torch.Tensor, torch.Tensor, torch.Tensor], v: tuple[torch.Tensor, torch.Tensor, torch.Tensor]
+) -> torch.Tensor:
+    """u · v of vectors given by their components (:func:`sin_cos_of_components`)."""
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
 
 
 def unit_vector(v: torch.Tensor) -> torch.Tensor:

@@ -16,6 +16,7 @@ pointings (:func:`upper_bound`), and the quadrant detector reads the light's cen
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import NamedTuple
 
@@ -29,8 +30,9 @@ from waterair.physics.optics import (
     arrival_gain_over_cell,
     departure_gain,
     departure_gain_at,
+    dot_of_components,
     peak_arrival_gain,
-    sin_cos_between,
+    sin_cos_of_components,
 )
 
 UPPER_BOUND_ITERATIONS = 4
@@ -130,9 +132,8 @@ def receive(
 
 def pointed_gains(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
     """Each sample's share ``[B, N]`` of eq. (4.7) (1/m²) for pointings tx_dir (up), rx_dir (down) ``[B, 3]``."""
-    sin_d, cos_d = sin_cos_between(tx_dir.unsqueeze(1), light.departure)
-    g_d = departure_gain_at(sin_d, cos_d, optics.divergence, optics.wavelength)
-    return light.weight * g_d * arrival_gains(light, rx_dir, optics)
+    samples = by_component(light)
+    return samples.weight * departure_gains(samples, tx_dir, optics)[1] * arrival_gains(samples, rx_dir, optics)
 
 
 def paper_gains(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
@@ -143,28 +144,70 @@ def paper_gains(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor,
     return light.weight * g_d * arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index)
 
 
-def arrival_gains(
-    light: LightSamples, rx_dir: torch.Tensor, optics: Transceiver, reach: torch.Tensor | None = None
-) -> torch.Tensor:
-    """Each sample's G_A ``[B, N]`` for the receiver boresight ``rx_dir`` ``[B, 3]``: a ray's, or averaged over a
-    lattice node's cell where ``light.cell`` is given (docs/model.md §4.3, "The field of view's edge"). ``reach``:
-    :func:`cell_reach` of ``light.cell``, where the caller evaluates many boresights on one light."""
-    boresight = rx_dir.unsqueeze(1)
-    sin_a, cos_a = sin_cos_between(boresight, -light.arrival)
-    alpha_a = torch.atan2(sin_a, cos_a)  # the field of view's margin is an angle
+Components = tuple[torch.Tensor, torch.Tensor, torch.Tensor]
+"""Vectors by component (x, y, z): three tensors, ``[B, N]`` for a field of samples, ``[B, 1]`` for one a link
+(``[S, B, 1]`` for S a link, as the bound's ascent's starts)."""
+
+
+class SamplesByComponent(NamedTuple):
+    """A :class:`LightSamples` by component, each a contiguous ``[B, N]`` tensor: the layout the gains and the
+    bound's ascent loop over (compiled, the ascent runs 4× faster than over ``[B, N, 3]``; docs/benchmarks.md
+    "Channels"). ``incoming`` −u2 (from the receiver toward the surface); ``cells`` each axis's change of u2
+    across a node's cell, and ``reach`` its length |du2| (rad: the largest change of the arrival angle across the
+    cell, whatever the boresight); both None for rays."""
+
+    weight: torch.Tensor
+    departure: Components
+    incoming: Components
+    cells: tuple[Components, Components] | None
+    reach: tuple[torch.Tensor, torch.Tensor] | None
+
+
+def by_component(light: LightSamples) -> SamplesByComponent:
+    """``light`` by component (:class:`SamplesByComponent`)."""
+    departure, incoming = _planes(light.departure), _planes(-light.arrival)
     if light.cell is None:
+        return SamplesByComponent(light.weight, departure, incoming, None, None)
+    reach = torch.linalg.vector_norm(light.cell, dim=-1)
+    cells = (_planes(light.cell[:, :, 0]), _planes(light.cell[:, :, 1]))
+    return SamplesByComponent(light.weight, departure, incoming, cells, (reach[..., 0], reach[..., 1]))
+
+
+def _planes(vectors: torch.Tensor) -> Components:
+    """Vectors ``[B, N, 3]`` as three contiguous ``[B, N]`` planes."""
+    x, y, z = vectors.permute(2, 0, 1).contiguous().unbind(0)
+    return x, y, z
+
+
+def columns(direction: torch.Tensor) -> Components:
+    """Directions ``[B, 3]`` (or ``[S, B, 3]``) by component, ``[B, 1]`` (``[S, B, 1]``) each, to broadcast against
+    samples ``[B, N]``."""
+    return direction[..., 0:1], direction[..., 1:2], direction[..., 2:3]
+
+
+def departure_gains(samples: SamplesByComponent, tx_dir: torch.Tensor, optics: Transceiver):
+    """cos α_D and G_D ``[B, N]`` (``[S, B, N]``) of each sample for the transmitter direction ``tx_dir`` ``[B, 3]``
+    (``[S, B, 3]``)."""
+    sin_d, cos_d = sin_cos_of_components(columns(tx_dir), samples.departure)
+    return cos_d, departure_gain_at(sin_d, cos_d, optics.divergence, optics.wavelength)
+
+
+def arrival_gains(samples: SamplesByComponent, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
+    """Each sample's G_A ``[B, N]`` for the receiver boresight ``rx_dir`` ``[B, 3]``: a ray's, or averaged over a
+    lattice node's cell where the samples have cells (docs/model.md §4.3, "The field of view's edge")."""
+    boresight = columns(rx_dir)
+    sin_a, cos_a = sin_cos_of_components(boresight, samples.incoming)
+    alpha_a = torch.atan2(sin_a, cos_a)  # the field of view's margin is an angle
+    if samples.cells is None or samples.reach is None:
         return arrival_gain(alpha_a, optics.half_fov, optics.concentrator_index, cos_a)
     # dα_A = (boresight · du2) / sin α_A across the cell, no more than |du2| (the angle between unit vectors)
-    change = (boresight.unsqueeze(-2) * light.cell).sum(-1)
-    largest = cell_reach(light.cell) if reach is None else reach
-    steps = (change / sin_a.unsqueeze(-1).clamp(min=1e-12)).clamp(-largest, largest)
+    across = sin_a.clamp(min=1e-12)
+    (cell_s, cell_t), (reach_s, reach_t) = samples.cells, samples.reach
+    steps = (
+        (dot_of_components(boresight, cell_s) / across).clamp(-reach_s, reach_s),
+        (dot_of_components(boresight, cell_t) / across).clamp(-reach_t, reach_t),
+    )
     return arrival_gain_over_cell(alpha_a, steps, optics.half_fov, optics.concentrator_index, cos_a)
-
-
-def cell_reach(cell: torch.Tensor) -> torch.Tensor:
-    """The largest change of each sample's arrival angle across its ``cell`` (:class:`LightSamples`) along each
-    axis, |du2| ``[B, N, 2]`` (rad), whatever the boresight."""
-    return torch.linalg.vector_norm(cell, dim=-1)
 
 
 def received_gain(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor, optics: Transceiver) -> torch.Tensor:
@@ -185,16 +228,15 @@ def upper_bound(
     samples, and the single brightest sample. With one sample it is the paper's
     G_UB = W n_c² / sin² ω_A. docs/model.md §4.5 says how close to a brute-force search it lands.
     """
-    weight = light.weight
+    samples = by_component(light)
     mean = (
-        weighted_direction(weight, light.departure, light.departure[:, 0]),
-        weighted_direction(weight, -light.arrival, -light.arrival[:, 0]),
+        mean_direction(samples.weight, samples.departure, light.departure[:, 0]),
+        mean_direction(samples.weight, samples.incoming, -light.arrival[:, 0]),
     )
-    reach = None if light.cell is None else cell_reach(light.cell)
-    results = [_ascend(light, tx, rx, optics, iterations, reach) for tx, rx in (mean, brightest(light))]
-    (gain_a, tx_a, rx_a), (gain_b, tx_b, rx_b) = results
-    better = (gain_b > gain_a).unsqueeze(-1)
-    return torch.maximum(gain_a, gain_b), torch.where(better, tx_b, tx_a), torch.where(better, rx_b, rx_a)
+    tx, rx = (torch.stack(pair) for pair in zip(mean, brightest(light), strict=True))  # [2, B, 3] each
+    gain, tx, rx = _ascend(samples, tx, rx, _per_start(optics), iterations)
+    better = (gain[1] > gain[0]).unsqueeze(-1)
+    return torch.maximum(gain[0], gain[1]), torch.where(better, tx[1], tx[0]), torch.where(better, rx[1], rx[0])
 
 
 def sliced(light: LightSamples, rows: slice = slice(None), samples: slice = slice(None)) -> LightSamples:
@@ -241,36 +283,39 @@ def light_centroid(
     return weighted_direction(shares, light.arrival, -rx_dir), seen
 
 
-def _ascend(
-    light: LightSamples,
-    tx: torch.Tensor,
-    rx: torch.Tensor,
-    optics: Transceiver,
-    iterations: int,
-    reach: torch.Tensor | None = None,
-):
-    """Alternating ascent of eq. (4.7) from (tx, rx); returns (gain, tx, rx). Each transmitter direction's cosines
-    to the samples and G_D are computed once, for the receiver's move after it and the transmitter's next; the
-    cells' :func:`cell_reach` once for all (``reach``)."""
-
-    def departures(tx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:  # cos α_D and G_D
-        sin_d, cos_d = sin_cos_between(tx.unsqueeze(1), light.departure)
-        return cos_d, departure_gain_at(sin_d, cos_d, optics.divergence, optics.wavelength)
-
-    def shares(g_d: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:  # as pointed_gains, with G_D already known
-        return light.weight * g_d * arrival_gains(light, rx, optics, reach)
-
-    cos_d, g_d = departures(tx)
+def _ascend(samples: SamplesByComponent, tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver, iterations: int):
+    """Alternating ascent of eq. (4.7) from each start (tx, rx) ``[S, B, 3]``, all in one batch (half the operations
+    of one start after the other, which bound an eager step at one link; ``optics`` :func:`_per_start`); returns
+    (gain ``[S, B]``, tx, rx). Each transmitter direction's cosines to the samples and G_D are computed once, for
+    the receiver's move after it and the transmitter's next."""
+    cos_d, g_d = departure_gains(samples, tx, optics)
     for _ in range(iterations):
-        tx = weighted_direction(shares(g_d, rx) * cos_d, light.departure, tx)
-        cos_d, g_d = departures(tx)
-        rx = weighted_direction(light.weight * g_d, -light.arrival, rx)
-    return shares(g_d, rx).sum(-1), tx, rx  # G (eq. 4.7) at (tx, rx)
+        shares = samples.weight * g_d * arrival_gains(samples, rx, optics)
+        tx = mean_direction(shares * cos_d, samples.departure, tx)
+        cos_d, g_d = departure_gains(samples, tx, optics)
+        rx = mean_direction(samples.weight * g_d, samples.incoming, rx)
+    return (samples.weight * g_d * arrival_gains(samples, rx, optics)).sum(-1), tx, rx  # G (eq. 4.7) at (tx, rx)
+
+
+def _per_start(optics: Transceiver) -> Transceiver:
+    """``optics`` for pointings ``[S, B, 3]``: a divergence per link ``[B]`` as ``[B, 1]``."""
+    if isinstance(optics.divergence, torch.Tensor) and optics.divergence.dim() == 1:
+        return dataclasses.replace(optics, divergence=optics.divergence.unsqueeze(-1))
+    return optics
 
 
 def weighted_direction(weights: torch.Tensor, directions: torch.Tensor, fallback: torch.Tensor) -> torch.Tensor:
     """The unit weighted mean of ``directions`` ``[B, N, 3]``, or ``fallback`` ``[B, 3]`` where it vanishes."""
-    total = (weights.unsqueeze(-1) * directions).sum(1)
+    return _unit_or((weights.unsqueeze(-1) * directions).sum(1), fallback)
+
+
+def mean_direction(weights: torch.Tensor, directions: Components, fallback: torch.Tensor) -> torch.Tensor:
+    """:func:`weighted_direction` of directions by component (``[..., N]`` each), ``[..., 3]``."""
+    return _unit_or(torch.stack([(weights * component).sum(-1) for component in directions], -1), fallback)
+
+
+def _unit_or(total: torch.Tensor, fallback: torch.Tensor) -> torch.Tensor:
+    """``total`` ``[..., 3]`` over its length, or ``fallback`` where it vanishes."""
     norm = torch.linalg.vector_norm(total, dim=-1, keepdim=True)
     tiny = torch.finfo(total.dtype).tiny
     return torch.where(norm > math.sqrt(tiny), total / norm.clamp(min=math.sqrt(tiny)), fallback)
