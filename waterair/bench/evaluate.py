@@ -2,11 +2,18 @@
 
 Times ``evaluate.py``'s work on the default scenarios (shipped policies, every baseline) twice in one
 process: all policies of a scenario in one batch (``batch_policies=true``, the default) and one
-rollout per policy. The kernel is compiled by a small warm-up first, so neither pays for it.
+rollout per policy. The kernel is compiled by a small warm-up first, so neither pays for it. With
+``--compile``, the evaluation's compile is also timed alone from an empty compile cache (:func:`cold_compile`):
+its graphs have a symbolic batch, and a layout that the environment's step compiles quickly can compile
+several times slower there.
 """
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+import tempfile
 import time
 
 from hydra import compose, initialize_config_dir
@@ -15,6 +22,13 @@ from waterair.evaluation.runner import evaluate
 from waterair.training.config import CONF_DIR
 
 CONF = CONF_DIR
+COLD = [
+    "scenarios.S1.realisations=2",
+    "scenarios.S1.steps=5",
+    *(f"scenarios.{name}=null" for name in ("S2", "S3", "S4", "S5")),
+    "workers=1",
+    "physics_figures=false",
+]
 WARM_UP = [
     "scenarios.S1.realisations=2",
     "scenarios.S1.steps=5",
@@ -53,7 +67,33 @@ def bench_evaluate(device: str, compile_kernel: bool, overrides: list[str] | Non
         }
     modes = record["modes"]
     record["speedup_batched"] = modes["one_at_a_time"]["seconds"] / modes["batched"]["seconds"]
+    if compile_kernel:
+        record["cold_compile_s"] = cold_compile(base)
     return record
+
+
+def cold_compile(overrides: list[str]) -> float:
+    """Seconds of a fresh process's evaluation of S1 on two seas for five steps, its step compiled, with a new
+    (empty) ``TORCHINDUCTOR_CACHE_DIR``: the evaluation's compile, as a first ``evaluate.py`` on a machine pays it."""
+    code = (
+        "import sys, time; start = time.perf_counter(); "
+        "from hydra import compose, initialize_config_dir; "
+        "from waterair.evaluation.runner import evaluate; "
+        f"initialize_config_dir(config_dir={str(CONF)!r}, version_base='1.3'); "
+        "evaluate(compose(config_name='evaluate', overrides=sys.argv[1:]), progress=lambda _: None); "
+        "print(time.perf_counter() - start)"
+    )
+    with tempfile.TemporaryDirectory() as cache:
+        done = subprocess.run(
+            [sys.executable, "-c", code, *overrides, *COLD],
+            capture_output=True,
+            text=True,
+            env={**os.environ, "TORCHINDUCTOR_CACHE_DIR": cache},
+            check=False,
+        )
+    if done.returncode != 0:
+        raise RuntimeError(f"cold evaluation compile failed:\n{done.stderr[-2000:]}")
+    return float(done.stdout.strip().splitlines()[-1])
 
 
 def evaluate_table(record: dict) -> str:
@@ -61,4 +101,6 @@ def evaluate_table(record: dict) -> str:
     for mode, r in record["modes"].items():
         lines.append(f"| {mode} | {r['seconds']:.1f} | {r['link_steps']:,} | {r['link_steps_per_s']:,.0f} |")
     lines.append(f"\nbatched is {record['speedup_batched']:.2f}x faster; warm-up (compile) {record['warm_up_s']:.1f} s")
+    if "cold_compile_s" in record:
+        lines.append(f"S1's evaluation compiled from an empty cache: {record['cold_compile_s']:.1f} s")
     return "\n".join(lines)

@@ -250,7 +250,8 @@ def _compiled_lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, o
 @torch.library.custom_op("waterair::written", mutates_args=())
 def written(values: torch.Tensor) -> torch.Tensor:
     """A zero (0-dim, ``values``' dtype) that reads ``values``: inside ``torch.compile``, an extern kernel's input,
-    which inductor writes to memory, so that the other consumers of ``values`` read it instead of recomputing it."""
+    which inductor writes to memory, so that the other consumers of ``values`` read it instead of recomputing it;
+    and what is computed from ``values + written(values)`` runs after the extern kernel, in C++ of its own."""
     return values.new_zeros(())
 
 

@@ -34,6 +34,7 @@ from waterair.physics.optics import (
     peak_arrival_gain,
     sin_cos_of_components,
 )
+from waterair.physics.surface import written
 
 UPPER_BOUND_ITERATIONS = 4
 """Alternating ascent steps of :func:`upper_bound` from each of its two starts."""
@@ -166,16 +167,17 @@ class SamplesByComponent(NamedTuple):
 def by_component(light: LightSamples) -> SamplesByComponent:
     """``light`` by component (:class:`SamplesByComponent`)."""
     departure, incoming = _planes(light.departure), _planes(-light.arrival)
+    weight = _apart(light.weight)
     if light.cell is None:
-        return SamplesByComponent(light.weight, departure, incoming, None, None)
+        return SamplesByComponent(weight, departure, incoming, None, None)
     reach = torch.linalg.vector_norm(light.cell, dim=-1)
     cells = (_planes(light.cell[:, :, 0]), _planes(light.cell[:, :, 1]))
-    return SamplesByComponent(light.weight, departure, incoming, cells, (reach[..., 0], reach[..., 1]))
+    return SamplesByComponent(weight, departure, incoming, cells, (reach[..., 0], reach[..., 1]))
 
 
 def _planes(vectors: torch.Tensor) -> Components:
     """Vectors ``[B, N, 3]`` as three contiguous ``[B, N]`` planes."""
-    x, y, z = vectors.permute(2, 0, 1).contiguous().unbind(0)
+    x, y, z = _apart(vectors.permute(2, 0, 1).contiguous()).unbind(0)
     return x, y, z
 
 
@@ -236,7 +238,8 @@ def upper_bound(
     tx, rx = (torch.stack(pair) for pair in zip(mean, brightest(light), strict=True))  # [2, B, 3] each
     gain, tx, rx = _ascend(samples, tx, rx, _per_start(optics), iterations)
     better = (gain[1] > gain[0]).unsqueeze(-1)
-    return torch.maximum(gain[0], gain[1]), torch.where(better, tx[1], tx[0]), torch.where(better, rx[1], rx[0])
+    bound = _apart(torch.maximum(gain[0], gain[1]))
+    return bound, torch.where(better, tx[1], tx[0]), torch.where(better, rx[1], rx[0])
 
 
 def sliced(light: LightSamples, rows: slice = slice(None), samples: slice = slice(None)) -> LightSamples:
@@ -291,10 +294,20 @@ def _ascend(samples: SamplesByComponent, tx: torch.Tensor, rx: torch.Tensor, opt
     cos_d, g_d = departure_gains(samples, tx, optics)
     for _ in range(iterations):
         shares = samples.weight * g_d * arrival_gains(samples, rx, optics)
-        tx = mean_direction(shares * cos_d, samples.departure, tx)
+        tx = _apart(mean_direction(shares * cos_d, samples.departure, tx))
         cos_d, g_d = departure_gains(samples, tx, optics)
-        rx = mean_direction(samples.weight * g_d, samples.incoming, rx)
+        rx = _apart(mean_direction(samples.weight * g_d, samples.incoming, rx))
     return (samples.weight * g_d * arrival_gains(samples, rx, optics)).sum(-1), tx, rx  # G (eq. 4.7) at (tx, rx)
+
+
+def _apart(values: torch.Tensor) -> torch.Tensor:
+    """``values`` themselves; inside ``torch.compile``, read first by an extern kernel (:func:`written`), where
+    inductor's CPU code then splits: the light's planes, each step of the ascent and the rest of the step compile
+    as C++ functions of their own. As one, a graph with a symbolic batch (the evaluation's) compiled 3× slower
+    (docs/benchmarks.md, "Evaluation")."""
+    if torch.compiler.is_compiling():
+        return values + written(values)
+    return values
 
 
 def _per_start(optics: Transceiver) -> Transceiver:
