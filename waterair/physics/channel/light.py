@@ -99,6 +99,7 @@ def receive(
     of the links, pointed differently), so the search runs on the first B / k links and is repeated.
     """
     shares = paper_gains(light, tx_dir, rx_dir, optics) if along_path else pointed_gains(light, tx_dir, rx_dir, optics)
+    shares = _apart(shares)
     gain = shares.sum(-1)
     if along_path:
         departure, arrival = light.departure[:, 0], light.arrival[:, 0]
@@ -302,9 +303,9 @@ def _ascend(samples: SamplesByComponent, tx: torch.Tensor, rx: torch.Tensor, opt
 
 def _apart(values: torch.Tensor) -> torch.Tensor:
     """``values`` themselves; inside ``torch.compile``, read first by an extern kernel (:func:`written`), where
-    inductor's CPU code then splits: the light's planes, each step of the ascent and the rest of the step compile
-    as C++ functions of their own. As one, a graph with a symbolic batch (the evaluation's) compiled 3× slower
-    (docs/benchmarks.md, "Evaluation")."""
+    inductor's CPU code then splits: the light's planes, each half-step of the ascent, the bound and the pointing's
+    shares compile as C++ functions of their own. As one, a graph with a symbolic batch (the evaluation's)
+    compiled 3× slower (docs/benchmarks.md, "Evaluation")."""
     if torch.compiler.is_compiling():
         return values + written(values)
     return values
