@@ -229,3 +229,35 @@ def test_the_lattices_factors_are_written_once_and_their_products_summed_without
         "inductor recomputes the lattice's factors (sines, cosines) in the loop that sums their products: an "
         "extern kernel's input (torch.ops.waterair.written) is no longer written to memory before its other reads"
     )
+
+
+@pytest.mark.usefixtures("inductor")
+def test_an_extern_kernel_between_two_computations_compiles_them_as_c_functions_of_their_own():
+    """The full channel's compiled reception is cut into C++ functions of their own at extern kernels (the light's
+    planes, each half-step of the bound's ascent, the bound, the pointing's shares: ``values + written(values)``
+    in waterair.physics.channel.light): inductor writes every loop between two extern calls into one function,
+    and the evaluation's graph (a symbolic batch) wrote one of 18,000 lines, which compiled 3× slower. Guarded:
+    a computation before and after such a read is two kernel functions, one without it."""
+    from torch._inductor.utils import run_and_get_code
+
+    from waterair.physics.surface import written
+
+    def computation(values: torch.Tensor, cut: bool) -> torch.Tensor:
+        middle = torch.sin(values) * 2.0 + 1.0
+        if cut:
+            middle = middle + written(middle)
+        return (torch.cos(middle) * middle).sum(-1)
+
+    values = torch.linspace(0.0, 1.0, 24).reshape(4, 6)
+    kernels = {}
+    for cut in (False, True):
+        torch._dynamo.reset()
+        compiled = inductor.torch_compile(computation, dynamic=True)
+        got, codes = run_and_get_code(compiled, values, cut)
+        torch.testing.assert_close(got, computation(values, cut))
+        kernels[cut] = len(re.findall(r"^cpp_fused\w* = async_compile", "\n".join(codes), flags=re.MULTILINE))
+    assert kernels[False] == 1, f"the computation without a cut compiled to {kernels[False]} kernel functions"
+    assert kernels[True] == 2, (
+        f"an extern kernel (torch.ops.waterair.written) between two computations no longer splits inductor's C++ "
+        f"into two functions ({kernels[True]}): the compiled reception's cuts (light._apart) do nothing"
+    )
