@@ -302,11 +302,11 @@ def _ascend(samples: SamplesByComponent, tx: torch.Tensor, rx: torch.Tensor, opt
 
 
 def _apart(values: torch.Tensor) -> torch.Tensor:
-    """``values`` themselves; inside ``torch.compile``, read first by an extern kernel (:func:`written`), where
-    inductor's CPU code then splits: the light's planes, each half-step of the ascent, the bound and the pointing's
-    shares compile as C++ functions of their own. As one, a graph with a symbolic batch (the evaluation's)
-    compiled 3× slower (docs/benchmarks.md, "Evaluation")."""
-    if torch.compiler.is_compiling():
+    """``values`` themselves; inside ``torch.compile`` on a CPU, read first by an extern kernel (:func:`written`),
+    where inductor's C++ then splits: the light's planes, each half-step of the ascent, the bound and the pointing's
+    shares compile as functions of their own. As one, a graph with a symbolic batch (the evaluation's) compiled
+    3× slower (docs/benchmarks.md, "Evaluation"). A GPU's kernels are apart already."""
+    if torch.compiler.is_compiling() and values.device.type == "cpu":
         return values + written(values)
     return values
 
