@@ -240,7 +240,7 @@ def test_an_extern_kernel_between_two_computations_compiles_them_as_c_functions_
     a computation before and after such a read is two kernel functions, one without it."""
     from torch._inductor.utils import run_and_get_code
 
-    from waterair.physics.surface import written
+    from waterair.core.extern import written
 
     def computation(values: torch.Tensor, cut: bool) -> torch.Tensor:
         middle = torch.sin(values) * 2.0 + 1.0

@@ -20,6 +20,7 @@ from typing import NamedTuple
 import torch
 from tensordict import TensorClass
 
+from waterair.core.extern import written
 from waterair.core.inductor import torch_compile
 from waterair.core.validation import check_int
 from waterair.physics.sea import SeaState
@@ -245,19 +246,6 @@ def _compiled_lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, o
     if order == 2:
         sums += [-(weight * real).sum(-1) for weight in (kx * kx, kx * ky, ky * ky)]
     return tuple(v.flatten(1) for v in sums)
-
-
-@torch.library.custom_op("waterair::written", mutates_args=())
-def written(values: torch.Tensor) -> torch.Tensor:
-    """A zero (0-dim, ``values``' dtype) that reads ``values``: inside ``torch.compile``, an extern kernel's input,
-    which inductor writes to memory, so that the other consumers of ``values`` read it instead of recomputing it;
-    and what is computed from ``values + written(values)`` runs after the extern kernel, in C++ of its own."""
-    return values.new_zeros(())
-
-
-@written.register_fake
-def _(values: torch.Tensor) -> torch.Tensor:
-    return values.new_empty(())
 
 
 @functools.cache

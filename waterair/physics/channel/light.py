@@ -23,6 +23,7 @@ from typing import NamedTuple
 import torch
 from tensordict import TensorClass
 
+from waterair.core.extern import written
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.optics import (
     angle_between,
@@ -34,7 +35,6 @@ from waterair.physics.optics import (
     peak_arrival_gain,
     sin_cos_of_components,
 )
-from waterair.physics.surface import written
 
 UPPER_BOUND_ITERATIONS = 4
 """Alternating ascent steps of :func:`upper_bound` from each of its two starts."""
