@@ -147,8 +147,8 @@ def paper_gains(light: LightSamples, tx_dir: torch.Tensor, rx_dir: torch.Tensor,
 
 
 Components = tuple[torch.Tensor, torch.Tensor, torch.Tensor]
-"""Vectors by component (x, y, z): three tensors, ``[B, N]`` for a field of samples, ``[B, 1]`` for one a link
-(``[S, B, 1]`` for S a link, as the bound's ascent's starts)."""
+"""Vectors by component (x, y, z): three tensors, ``[B, N]`` for a field of samples, ``[B, 1]`` for one per link
+(``[S, B, 1]`` for S per link, as the bound's ascent's starts)."""
 
 
 class SamplesByComponent(NamedTuple):
