@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 import platform
 import statistics
+import subprocess
+import sys
 import time
 from collections.abc import Callable
 
@@ -39,6 +41,21 @@ def sincos_per_element(repeats: int, device: torch.device, dtype: torch.dtype) -
     unit of the full channel's lattice floor (``waterair.bench.env.lattice_floor``)."""
     rows, columns = LATTICE_FLOOR_SHAPE
     return sincos_floor(rows, columns, repeats, device, dtype) / (rows * columns)
+
+
+def seconds_in_fresh_python(code: str, args: list[str], cache: str, what: str) -> float:
+    """Run ``code`` (which prints seconds last) in a fresh Python with ``args`` as ``sys.argv[1:]`` and torch's
+    compile cache in ``cache`` (``TORCHINDUCTOR_CACHE_DIR``); returns the seconds, or raises naming ``what``."""
+    done = subprocess.run(
+        [sys.executable, "-c", code, *args],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "TORCHINDUCTOR_CACHE_DIR": cache},
+        check=False,
+    )
+    if done.returncode != 0:
+        raise RuntimeError(f"{what} failed:\n{done.stderr[-2000:]}")
+    return float(done.stdout.strip().splitlines()[-1])
 
 
 def machine(device: torch.device, dtype: torch.dtype) -> dict:

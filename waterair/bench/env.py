@@ -7,7 +7,6 @@ own; the worker reports JSON on stdout. The sin+cos floor is measured inside the
 from __future__ import annotations
 
 import json
-import os
 import resource
 import subprocess
 import sys
@@ -16,7 +15,7 @@ import time
 
 import torch
 
-from waterair.bench.common import machine, sincos_floor, sincos_per_element
+from waterair.bench.common import machine, seconds_in_fresh_python, sincos_floor, sincos_per_element
 from waterair.core.devices import resolve_device
 from waterair.envs.env import WaterAirEnv
 from waterair.physics.channel import TwoScale
@@ -149,16 +148,8 @@ def compile_times(batch: int = 16) -> dict:
         f"env = WaterAirEnv(num_envs={batch}, seed=0, compile_kernel=True); td = env.reset(); "
         f"env.step(td.set('action', torch.zeros({batch}, 4))); print(time.perf_counter() - start)"
     )
-    record = {}
     with tempfile.TemporaryDirectory() as cache:
-        environment = {**os.environ, "TORCHINDUCTOR_CACHE_DIR": cache}
-        for name in ("cold_s", "warm_s"):
-            done = subprocess.run(
-                [sys.executable, "-c", code], capture_output=True, text=True, env=environment, check=False
-            )
-            if done.returncode != 0:
-                raise RuntimeError(f"compile-time probe failed:\n{done.stderr[-2000:]}")
-            record[name] = float(done.stdout.strip().splitlines()[-1])
+        record = {name: seconds_in_fresh_python(code, [], cache, "compile-time probe") for name in ("cold_s", "warm_s")}
     return {"batch": batch, **record}
 
 

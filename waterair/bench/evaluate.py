@@ -10,14 +10,12 @@ several times slower there.
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import tempfile
 import time
 
 from hydra import compose, initialize_config_dir
 
+from waterair.bench.common import seconds_in_fresh_python
 from waterair.evaluation.runner import evaluate
 from waterair.training.config import CONF_DIR
 
@@ -84,16 +82,7 @@ def cold_compile(overrides: list[str]) -> float:
         "print(time.perf_counter() - start)"
     )
     with tempfile.TemporaryDirectory() as cache:
-        done = subprocess.run(
-            [sys.executable, "-c", code, *overrides, *COLD],
-            capture_output=True,
-            text=True,
-            env={**os.environ, "TORCHINDUCTOR_CACHE_DIR": cache},
-            check=False,
-        )
-    if done.returncode != 0:
-        raise RuntimeError(f"cold evaluation compile failed:\n{done.stderr[-2000:]}")
-    return float(done.stdout.strip().splitlines()[-1])
+        return seconds_in_fresh_python(code, [*overrides, *COLD], cache, "cold evaluation compile")
 
 
 def evaluate_table(record: dict) -> str:
