@@ -9,6 +9,7 @@ import json
 import time
 
 import pytest
+import torch
 from conftest import ONE_PATH, TINY
 
 from waterair.bench import quality
@@ -66,6 +67,33 @@ def test_sb3s_best_time_on_each_base_over_ours_and_a_lower_bound_where_none_reac
     assert "sb3_flat_base_over_ours_flat_base" not in record and "sb3_over_ours_eager" not in record
     table = quality.quality_table(record)
     assert "| SB3's best seconds / ours_flat_base's to 0.95 | | at least 12.5 | |" in table
+
+
+@pytest.mark.parametrize("threads", [None, 1, "auto"])
+def test_every_pipeline_runs_on_the_same_threads(monkeypatch, threads):
+    """Ours through train.py's ``threads``, Stable-Baselines3's as torch's thread count while it learns: the same
+    count for both, by default every CPU the process may use (train.py's ``auto`` leaves one idle)."""
+    import os
+
+    from waterair.core.threads import choose_threads
+
+    seen: dict[str, set] = {"ours": set(), "sb3": set()}
+
+    def our_pipeline(frames, chunk, target, overrides):
+        seen["ours"].update(o.removeprefix("threads=") for o in overrides if o.startswith("threads="))
+        return fake_runs((10.0, 0.96))
+
+    def their_pipeline(name, *args):
+        seen["sb3"].add(str(torch.get_num_threads()))
+        return fake_runs((100.0, 0.96))
+
+    monkeypatch.setattr(quality, "ours", our_pipeline)
+    monkeypatch.setattr(quality, "sb3", their_pipeline)
+    before = torch.get_num_threads()
+    record = quality.bench_quality(1600, 1600, 4800, eager=True, threads=threads)
+    expected = len(os.sched_getaffinity(0)) if threads is None else choose_threads(threads)[0]
+    assert seen == {"ours": {str(expected)}, "sb3": {str(expected)}} and record["threads"] == expected
+    assert torch.get_num_threads() == before  # the caller's count restored
 
 
 def test_the_summary_sets_the_flat_bases_ratio_against_its_target(tmp_path):

@@ -118,6 +118,9 @@ def main(argv: list[str] | None = None) -> int:
     quality.add_argument("--chunk", type=int, default=CHUNK, help="frames between two scorings of every pipeline")
     quality.add_argument("--sb3-frames", type=int, default=80_000, help="frames of each Stable-Baselines3 run at most")
     quality.add_argument("--eager", action="store_true", help="also our pipeline eager, on each base")
+    quality.add_argument(
+        "--threads", type=_threads, default=None, help="torch threads of every pipeline, auto or N (default: every CPU)"
+    )
     quality.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
     census = sub.add_parser("census", help="refraction points per link on the measured-slope sea (float64)")
     census.add_argument("--winds", type=float, nargs="+", default=[4.0, 12.0, 20.0], help="U10 (m/s)")
@@ -174,7 +177,9 @@ def main(argv: list[str] | None = None) -> int:
         print(training_table(record))
     elif args.suite == "quality":
         record = {"machine": machine(torch.device("cpu"), torch.float32)}
-        record.update(bench_quality(args.frames, args.flat_frames, args.sb3_frames, args.eager, args.chunk))
+        record.update(
+            bench_quality(args.frames, args.flat_frames, args.sb3_frames, args.eager, args.chunk, threads=args.threads)
+        )
         print(quality_table(record))
     elif args.suite == "census":
         print(census_table({"rows": []}))

@@ -3,7 +3,8 @@
 The wall time each pipeline needs to reach a greedy ratio to the upper bound of ``target`` (0.95) at the S1
 point (12 m/s, 10 % offset, the default 50 mrad beam) on the defaults: the measured-slope sea, the full channel,
 both ends sensed (``env/observation=beacon``) through the realistic sensor, all measured in this one process,
-one after the other:
+one after the other, every pipeline on the same torch threads (``threads``; by default every CPU the process may
+use: train.py's ``auto`` would leave one of them idle, which Stable-Baselines3 does not):
 
 * **ours**: ``train()`` with the defaults (PPO) at that one point, one run of at most ``frames``, its greedy
   policy scored at every checkpoint (each ``chunk`` frames) until one reaches the target, which ends the run
@@ -28,6 +29,7 @@ Needs ``stable_baselines3`` for the SB3 rows.
 
 from __future__ import annotations
 
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -36,6 +38,7 @@ import torch
 
 from waterair.bench.sb3 import SB3Actor, sb3_ddpg, sb3_ppo
 from waterair.bench.training import compose_training
+from waterair.core.threads import choose_threads, torch_threads
 from waterair.evaluation.runner import compare_policies
 from waterair.evaluation.scenarios import Scenario
 from waterair.training.builders import env_config
@@ -133,22 +136,32 @@ def sb3(name: str, frames: int, chunk: int, target: float, overrides: list[str])
 
 
 def bench_quality(
-    frames: int, flat_frames: int, sb3_frames: int, eager: bool = False, chunk: int = CHUNK, target: float = 0.95
+    frames: int,
+    flat_frames: int,
+    sb3_frames: int,
+    eager: bool = False,
+    chunk: int = CHUNK,
+    target: float = 0.95,
+    threads: int | str | None = None,
 ) -> dict:
-    """Every pipeline on each base, then per base the ratio of Stable-Baselines3's best seconds to ``target``
-    over each of ours: exact where an SB3 run reached it, a lower bound (``..._at_least``) where none had by the
-    end of its budget."""
-    record = {"benchmark": "quality", "target": target, "chunk": chunk}
+    """Every pipeline on each base, each on ``threads`` torch threads (a count, or ``auto``: train.py's rule;
+    default: every CPU this process may use), then per base the ratio of Stable-Baselines3's best seconds to
+    ``target`` over each of ours: exact where an SB3 run reached it, a lower bound (``..._at_least``) where none
+    had by the end of its budget."""
+    threads = len(os.sched_getaffinity(0)) if threads is None else choose_threads(threads)[0]
+    record = {"benchmark": "quality", "target": target, "chunk": chunk, "threads": threads}
     record["scenario"] = "S1 point, 32 seas x 500 steps, seed 12345"
     for base, overrides in BASES.items():
         budget = flat_frames if base else frames
         for name, agent in OURS.items():
-            record[f"{name}{base}"] = ours(budget, chunk, target, [*agent, *overrides, *COMPILED])
+            ours_on = [*agent, *overrides, f"threads={threads}"]
+            record[f"{name}{base}"] = ours(budget, chunk, target, [*ours_on, *COMPILED])
             if eager:
-                record[f"{name}{base}_eager"] = ours(budget, chunk, target, [*agent, *overrides, *EAGER])
-    for base, overrides in BASES.items():
-        for name in SB3:
-            record[f"{name}{base}"] = sb3(name, sb3_frames, chunk, target, overrides)
+                record[f"{name}{base}_eager"] = ours(budget, chunk, target, [*ours_on, *EAGER])
+    with torch_threads(threads):
+        for base, overrides in BASES.items():
+            for name in SB3:
+                record[f"{name}{base}"] = sb3(name, sb3_frames, chunk, target, overrides)
     for base in BASES:
         theirs = [record[f"{name}{base}"] for name in SB3 if record[f"{name}{base}"] is not None]
         for mine in (f"{name}{base}{mode}" for name in OURS for mode in ("", "_eager")):
