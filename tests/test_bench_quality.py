@@ -38,6 +38,11 @@ def test_our_run_is_scored_at_each_checkpoint_and_ends_at_the_first_that_reaches
     assert 0.2 < first["seconds"] < second["seconds"] < wall - 1.8
 
 
+def in_this_process(monkeypatch):
+    """Each pipeline called here rather than in a Python of its own, so that the fakes below stand in for it."""
+    monkeypatch.setattr(quality, "in_fresh_python", lambda kind, *args: getattr(quality, kind)(*args))
+
+
 def fake_runs(*seconds_and_ratios):
     runs = [{"frames": 1600 * (i + 1), "seconds": s, "ratio_to_ub": r} for i, (s, r) in enumerate(seconds_and_ratios)]
     return {"runs": runs, "seconds_to_target": quality._first_reaching(runs, 0.95)}
@@ -59,8 +64,11 @@ def test_sb3s_best_time_on_each_base_over_ours_and_a_lower_bound_where_none_reac
     def our_pipeline(frames, chunk, target, overrides):
         return ours[base_of(overrides[1:] if overrides[0] == "agent=ddpg" else overrides)]
 
+    in_this_process(monkeypatch)
     monkeypatch.setattr(quality, "ours", our_pipeline)
-    monkeypatch.setattr(quality, "sb3", lambda name, *args: theirs[name, base_of(args[-1])])
+    monkeypatch.setattr(
+        quality, "sb3", lambda name, frames, chunk, target, overrides, threads: theirs[name, base_of(overrides)]
+    )
     record = quality.bench_quality(1600, 1600, 4800)
     assert record["sb3_over_ours"] == record["sb3_over_ours_ddpg"] == pytest.approx(200.0 / 10.0)  # PPO's 200 s
     assert record["sb3_flat_base_over_ours_flat_base_at_least"] == pytest.approx(500.0 / 40.0)
@@ -71,8 +79,8 @@ def test_sb3s_best_time_on_each_base_over_ours_and_a_lower_bound_where_none_reac
 
 @pytest.mark.parametrize("threads", [None, 1, "auto"])
 def test_every_pipeline_runs_on_the_same_threads(monkeypatch, threads):
-    """Ours through train.py's ``threads``, Stable-Baselines3's as torch's thread count while it learns: the same
-    count for both, by default every CPU the process may use (train.py's ``auto`` leaves one idle)."""
+    """Ours through train.py's ``threads``, Stable-Baselines3's as torch's thread count while it builds and learns:
+    the same count for both, by default every CPU the process may use (train.py's ``auto`` leaves one idle)."""
     import os
 
     from waterair.core.threads import choose_threads
@@ -80,20 +88,30 @@ def test_every_pipeline_runs_on_the_same_threads(monkeypatch, threads):
     seen: dict[str, set] = {"ours": set(), "sb3": set()}
 
     def our_pipeline(frames, chunk, target, overrides):
-        seen["ours"].update(o.removeprefix("threads=") for o in overrides if o.startswith("threads="))
+        seen["ours"].update(int(o.removeprefix("threads=")) for o in overrides if o.startswith("threads="))
         return fake_runs((10.0, 0.96))
 
-    def their_pipeline(name, *args):
-        seen["sb3"].add(str(torch.get_num_threads()))
-        return fake_runs((100.0, 0.96))
+    def their_model(cfg):  # what the real sb3() runs its model on
+        seen["sb3"].add(torch.get_num_threads())
 
+    sb3 = quality.sb3
+    in_this_process(monkeypatch)
+    monkeypatch.setattr(quality, "SB3", {name: ("agent=ddpg", their_model) for name in quality.SB3})
     monkeypatch.setattr(quality, "ours", our_pipeline)
-    monkeypatch.setattr(quality, "sb3", their_pipeline)
+    monkeypatch.setattr(quality, "sb3", lambda *args: sb3(*args) or fake_runs((100.0, 0.96)))
     before = torch.get_num_threads()
     record = quality.bench_quality(1600, 1600, 4800, eager=True, threads=threads)
     expected = len(os.sched_getaffinity(0)) if threads is None else choose_threads(threads)[0]
-    assert seen == {"ours": {str(expected)}, "sb3": {str(expected)}} and record["threads"] == expected
+    assert seen == {"ours": {expected}, "sb3": {expected}} and record["threads"] == expected
     assert torch.get_num_threads() == before  # the caller's count restored
+
+
+@pytest.mark.slow
+def test_each_pipeline_runs_in_a_python_of_its_own_and_a_failing_one_is_named():
+    """The suite's pipelines each start a fresh Python (a pipeline run after others in one process ran up to 17 %
+    slower); one that fails there raises here, naming it, with the child's error."""
+    with pytest.raises(RuntimeError, match=r"the time-to-quality pipeline nothing\(1,\) failed:\n(.|\n)*no "):
+        quality.in_fresh_python("nothing", 1)
 
 
 def test_the_summary_sets_the_flat_bases_ratio_against_its_target(tmp_path):
@@ -122,6 +140,7 @@ def test_the_suite_says_first_when_stable_baselines3_is_missing(monkeypatch, cap
     from waterair.bench import __main__ as cli
 
     monkeypatch.setattr(cli, "sb3_installed", lambda: installed)
+    in_this_process(monkeypatch)
     monkeypatch.setattr(quality, "ours", lambda frames, chunk, target, overrides: fake_runs((10.0, 0.96)))
     monkeypatch.setattr(quality, "sb3", lambda name, *args: fake_runs((100.0, 0.96)) if installed else None)
     assert cli.main(["quality", "--frames", "1600", "--flat-frames", "1600", "--out", str(tmp_path / "q.json")]) == 0

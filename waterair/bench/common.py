@@ -46,16 +46,22 @@ def sincos_per_element(repeats: int, device: torch.device, dtype: torch.dtype) -
 def seconds_in_fresh_python(code: str, args: list[str], cache: str, what: str) -> float:
     """Run ``code`` (which prints seconds last) in a fresh Python with ``args`` as ``sys.argv[1:]`` and torch's
     compile cache in ``cache`` (``TORCHINDUCTOR_CACHE_DIR``); returns the seconds, or raises naming ``what``."""
+    return float(last_line_of_fresh_python(code, args, what, {"TORCHINDUCTOR_CACHE_DIR": cache}))
+
+
+def last_line_of_fresh_python(code: str, args: list[str], what: str, environ: dict[str, str] | None = None) -> str:
+    """Run ``code`` in a fresh Python with ``args`` as ``sys.argv[1:]`` (and ``environ`` over this process's
+    environment); the last line it printed, or an error naming ``what`` with the end of its stderr."""
     done = subprocess.run(
         [sys.executable, "-c", code, *args],
         capture_output=True,
         text=True,
-        env={**os.environ, "TORCHINDUCTOR_CACHE_DIR": cache},
+        env={**os.environ, **(environ or {})},
         check=False,
     )
     if done.returncode != 0:
-        raise RuntimeError(f"{what} failed:\n{done.stderr[-2000:]}")
-    return float(done.stdout.strip().splitlines()[-1])
+        raise RuntimeError(f"{what} failed:\n{done.stderr[-3000:]}")
+    return done.stdout.strip().splitlines()[-1]
 
 
 def machine(device: torch.device, dtype: torch.dtype) -> dict:

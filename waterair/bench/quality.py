@@ -2,9 +2,10 @@
 
 The wall time each pipeline needs to reach a greedy ratio to the upper bound of ``target`` (0.95) at the S1
 point (12 m/s, 10 % offset, the default 50 mrad beam) on the defaults: the measured-slope sea, the full channel,
-both ends sensed (``env/observation=beacon``) through the realistic sensor, all measured in this one process,
-one after the other, every pipeline on the same torch threads (``threads``; by default every CPU the process may
-use: train.py's ``auto`` would leave one of them idle, which Stable-Baselines3 does not):
+both ends sensed (``env/observation=beacon``) through the realistic sensor, measured one after the other, each
+in a Python process of its own (:func:`in_fresh_python`), every pipeline on the same torch threads (``threads``;
+by default every CPU the process may use: train.py's ``auto`` would leave one of them idle, which
+Stable-Baselines3 does not):
 
 * **ours**: ``train()`` with the defaults (PPO) at that one point, one run of at most ``frames``, its greedy
   policy scored at every checkpoint (each ``chunk`` frames) until one reaches the target, which ends the run
@@ -29,6 +30,7 @@ Needs ``stable_baselines3`` for the SB3 rows.
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 import time
@@ -36,6 +38,7 @@ from pathlib import Path
 
 import torch
 
+from waterair.bench.common import last_line_of_fresh_python
 from waterair.bench.sb3 import SB3Actor, sb3_ddpg, sb3_ppo
 from waterair.bench.training import compose_training
 from waterair.core.threads import choose_threads, torch_threads
@@ -114,25 +117,47 @@ def ours(frames: int, chunk: int, target: float, overrides: list[str]) -> dict:
     return {"overrides": overrides, "runs": runs, "seconds_to_target": _first_reaching(runs, target)}
 
 
-def sb3(name: str, frames: int, chunk: int, target: float, overrides: list[str]) -> dict | None:
+def sb3(name: str, frames: int, chunk: int, target: float, overrides: list[str], threads: int) -> dict | None:
     """Stable-Baselines3 ``name`` (a key of :data:`SB3`) on the Gymnasium view of the same link (the defaults with
-    ``overrides`` and that agent's settings), scored after every ``chunk`` frames until it reaches ``target``
-    or ``frames``: each (frames, seconds, ratio). Its seconds count model construction and learning, not the
-    scoring."""
+    ``overrides`` and that agent's settings) on ``threads`` torch threads, scored after every ``chunk`` frames until
+    it reaches ``target`` or ``frames``: each (frames, seconds, ratio). Its seconds count model construction and
+    learning, not the scoring."""
     agent, build = SB3[name]
     cfg = compose_training([agent, *POINT, *overrides])
-    start = time.perf_counter()
-    model = build(cfg)
-    if model is None:
-        return None
-    runs: list[dict] = []
-    seconds = 0.0
-    while not runs or (runs[-1]["frames"] < frames and runs[-1]["ratio_to_ub"] < target):
-        model.learn(chunk, reset_num_timesteps=not runs)
-        seconds += time.perf_counter() - start
-        runs.append({"frames": model.num_timesteps, "seconds": seconds, "ratio_to_ub": score(cfg, SB3Actor(model))})
+    with torch_threads(threads):
         start = time.perf_counter()
+        model = build(cfg)
+        if model is None:
+            return None
+        runs: list[dict] = []
+        seconds = 0.0
+        while not runs or (runs[-1]["frames"] < frames and runs[-1]["ratio_to_ub"] < target):
+            model.learn(chunk, reset_num_timesteps=not runs)
+            seconds += time.perf_counter() - start
+            ratio = score(cfg, SB3Actor(model))
+            runs.append({"frames": model.num_timesteps, "seconds": seconds, "ratio_to_ub": ratio})
+            start = time.perf_counter()
     return {"overrides": overrides, "runs": runs, "seconds_to_target": _first_reaching(runs, target)}
+
+
+CHILD = "import json, sys; from waterair.bench import quality as q; print(json.dumps(q.run_pipeline(sys.argv[1])))"
+
+
+def in_fresh_python(kind: str, *args) -> dict | None:
+    """:func:`ours` or :func:`sb3` (``kind``) with ``args`` in a Python process of its own, as a user's run would
+    start: no graph, allocator state or thread pool of the pipelines before it (in one process, measured,
+    Stable-Baselines3 DDPG ran 17 % slower after ours, ours 5–10 %; docs/benchmarks.md, "Time to quality")."""
+    request = json.dumps({"kind": kind, "args": args})
+    return json.loads(last_line_of_fresh_python(CHILD, [request], f"the time-to-quality pipeline {kind}{args}"))
+
+
+def run_pipeline(request: str) -> dict | None:
+    """The child of :func:`in_fresh_python`: the pipeline ``request`` names (JSON: ``kind``, ``args``)."""
+    asked = json.loads(request)
+    pipelines = {"ours": ours, "sb3": sb3}
+    if asked["kind"] not in pipelines:
+        raise ValueError(f"no time-to-quality pipeline {asked['kind']!r}: ours or sb3")
+    return pipelines[asked["kind"]](*asked["args"])
 
 
 def bench_quality(
@@ -155,13 +180,12 @@ def bench_quality(
         budget = flat_frames if base else frames
         for name, agent in OURS.items():
             ours_on = [*agent, *overrides, f"threads={threads}"]
-            record[f"{name}{base}"] = ours(budget, chunk, target, [*ours_on, *COMPILED])
+            record[f"{name}{base}"] = in_fresh_python("ours", budget, chunk, target, [*ours_on, *COMPILED])
             if eager:
-                record[f"{name}{base}_eager"] = ours(budget, chunk, target, [*ours_on, *EAGER])
-    with torch_threads(threads):
-        for base, overrides in BASES.items():
-            for name in SB3:
-                record[f"{name}{base}"] = sb3(name, sb3_frames, chunk, target, overrides)
+                record[f"{name}{base}_eager"] = in_fresh_python("ours", budget, chunk, target, [*ours_on, *EAGER])
+    for base, overrides in BASES.items():
+        for name in SB3:
+            record[f"{name}{base}"] = in_fresh_python("sb3", name, sb3_frames, chunk, target, overrides, threads)
     for base in BASES:
         theirs = [record[f"{name}{base}"] for name in SB3 if record[f"{name}{base}"] is not None]
         for mine in (f"{name}{base}{mode}" for name in OURS for mode in ("", "_eager")):

@@ -40,6 +40,7 @@ import torch
 from hydra import compose, initialize_config_dir
 from torch import nn
 
+from waterair.bench.common import last_line_of_fresh_python
 from waterair.bench.sb3 import sb3_ddpg
 from waterair.core.threads import choose_threads, torch_threads
 from waterair.training.algorithms.ddpg import DDPG
@@ -223,10 +224,7 @@ def train_run(frames: int, overrides: list[str]) -> dict:
     """``train()`` on the default configuration with ``overrides`` for ``frames`` frames, in a fresh process."""
     args = json.dumps({"frames": frames, "overrides": overrides})
     child = "import sys; from waterair.bench.training import run_in_child; run_in_child(sys.argv[1])"
-    done = subprocess.run([sys.executable, "-c", child, args], capture_output=True, text=True)
-    if done.returncode:
-        raise RuntimeError(f"the training run {overrides} failed:\n{done.stderr[-3000:]}")
-    return json.loads(done.stdout.splitlines()[-1])
+    return json.loads(last_line_of_fresh_python(child, [args], f"the training run {overrides}"))
 
 
 def run_in_child(args: str) -> None:
