@@ -64,9 +64,8 @@ BASES = {"": [], "_flat_base": FLAT_BASE}
 """Each base's name suffix and overrides."""
 SHORT_DDPG = ["env.num_envs=16", "collector.frames_per_batch=400", "collector.init_random_frames=400"]
 """DDPG's batches for a short run: 16 links, 25 steps each. The defaults' 64 collect 1,600 frames on one actor
-before its first update; measured (flat base, eager, two threads, seeds 0–2), 16 links reached 0.95 in 4,800,
-4,800 and 6,400 frames (5.0, 5.2, 7.5 s), 64 in 8,000, 11,200 and 14,400 (6.4, 8.5, 10.9 s), 32 in 4,800, 12,800
-and 6,400, 8 in the frames of 16 at twice the time a frame."""
+before its first update and reached the target in more frames and seconds (docs/benchmarks.md, "Time to
+quality"); 32 links varied more between seeds, 8 cost twice the time a frame."""
 OURS = {"ours": [], "ours_ddpg": ["agent=ddpg", *SHORT_DDPG, "agent.policy_weights=last"]}
 """Each of our pipelines: its overrides (the defaults are PPO). DDPG as Stable-Baselines3's: learning from its first
 batch on (:data:`SHORT_DDPG`) and scored on its live actor (the defaults' 16,000 random frames first and the
@@ -150,8 +149,8 @@ CHILD = "import json, sys; from waterair.bench import quality as q; print(json.d
 
 def in_fresh_python(kind: str, *args) -> dict | None:
     """:func:`ours` or :func:`sb3` (``kind``) with ``args`` in a Python process of its own, as a user's run would
-    start: no graph, allocator state or thread pool of the pipelines before it (in one process, measured,
-    Stable-Baselines3 DDPG ran 17 % slower after ours, ours 5–10 %; docs/benchmarks.md, "Time to quality")."""
+    start: no graph, allocator state or thread pool of the pipelines before it, which slowed both sides when all
+    ran in one process (docs/benchmarks.md, "Time to quality")."""
     request = json.dumps({"kind": kind, "args": args})
     return json.loads(last_line_of_fresh_python(CHILD, [request], f"the time-to-quality pipeline {kind}{args}"))
 
