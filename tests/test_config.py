@@ -55,6 +55,30 @@ def test_the_paper_preset_is_the_papers_table_one_override_away():
     assert cfg.agent.policy_weights == "last"
 
 
+@pytest.mark.parametrize("agent", ["ddpg", "td3"])
+def test_the_short_run_preset_changes_the_collection_and_the_saved_policy_only(agent):
+    """``+experiment=short_run`` is applied after the agent option (which sets 16,000 random frames): exactly its
+    four keys differ from the agent's defaults, and the result validates."""
+    plain = compose_config("config", [f"agent={agent}"])
+    short = compose_config("config", [f"agent={agent}", "+experiment=short_run"])
+    validate(short)
+
+    def leaves(node, prefix=""):
+        if not isinstance(node, dict):
+            return {prefix[:-1]: node}
+        return {key: value for name, child in node.items() for key, value in leaves(child, f"{prefix}{name}.").items()}
+
+    before, after = (leaves(OmegaConf.to_container(cfg, resolve=True)) for cfg in (plain, short))
+    assert before.keys() == after.keys()
+    changed = {key: (before[key], after[key]) for key in before if repr(before[key]) != repr(after[key])}
+    assert changed == {
+        "env.num_envs": (64, 16),
+        "collector.frames_per_batch": (1600, 400),
+        "collector.init_random_frames": (16000, 400),
+        "agent.policy_weights": ("average", "last"),
+    }
+
+
 def test_an_averaged_policy_without_a_target_actor_is_a_one_line_error():
     cfg = compose_config("config", ["agent=ddpg", "agent.loss.delay_actor=false"])
     with pytest.raises(ValueError, match=r"^agent.policy_weights = 'average' needs the target actor"):

@@ -62,14 +62,11 @@ COMPILED = ["env.compile_kernel=true", "compile_update=true"]
 """Our pipeline compiled whatever its budget (``auto`` would not compile short budgets)."""
 BASES = {"": [], "_flat_base": FLAT_BASE}
 """Each base's name suffix and overrides."""
-SHORT_DDPG = ["env.num_envs=16", "collector.frames_per_batch=400", "collector.init_random_frames=400"]
-"""DDPG's batches for a short run: 16 links, 25 steps each. The defaults' 64 collect 1,600 frames on one actor
-before its first update and reached the target in more frames and seconds (docs/benchmarks.md, "Time to
-quality"); 32 links varied more between seeds, 8 cost twice the time a frame."""
-OURS = {"ours": [], "ours_ddpg": ["agent=ddpg", *SHORT_DDPG, "agent.policy_weights=last"]}
-"""Each of our pipelines: its overrides (the defaults are PPO). DDPG as Stable-Baselines3's: learning from its first
-batch on (:data:`SHORT_DDPG`) and scored on its live actor (the defaults' 16,000 random frames first and the
-actor's Polyak average are for long runs: the average at τ = 0.001 trails the actor by about 1,000 updates)."""
+OURS = {"ours": [], "ours_ddpg": ["agent=ddpg", "+experiment=short_run"]}
+"""Each of our pipelines: its overrides (the defaults are PPO). DDPG with the preset for short off-policy runs
+(``conf/experiment/short_run.yaml``): learning from its first 400-frame batch on, as Stable-Baselines3 DDPG does,
+and scored on its live actor (the defaults' 16,000 random frames first, 64 links and the actor's Polyak average are
+for long runs: docs/benchmarks.md, "Time to quality")."""
 SB3 = {"sb3_ddpg": ("agent=ddpg", sb3_ddpg), "sb3_ppo": ("agent=ppo", sb3_ppo)}
 """Each Stable-Baselines3 pipeline: our agent whose settings it takes, and its builder."""
 CHUNK = 1_600
