@@ -67,7 +67,7 @@ def test_sb3s_best_time_on_each_base_over_ours_and_a_lower_bound_where_none_reac
     in_this_process(monkeypatch)
     monkeypatch.setattr(quality, "ours", our_pipeline)
     monkeypatch.setattr(
-        quality, "sb3", lambda name, frames, chunk, target, overrides, threads: theirs[name, base_of(overrides)]
+        quality, "sb3", lambda name, frames, chunk, target, threads, overrides: theirs[name, base_of(overrides)]
     )
     record = quality.bench_quality(1600, 1600, 4800)
     assert record["sb3_over_ours"] == record["sb3_over_ours_ddpg"] == pytest.approx(200.0 / 10.0)  # PPO's 200 s
@@ -75,7 +75,53 @@ def test_sb3s_best_time_on_each_base_over_ours_and_a_lower_bound_where_none_reac
     assert record["sb3_flat_base_over_ours_ddpg_flat_base_at_least"] == pytest.approx(500.0 / 40.0)
     assert "sb3_flat_base_over_ours_flat_base" not in record and "sb3_over_ours_eager" not in record
     table = quality.quality_table(record)
-    assert "| SB3's best seconds / ours_flat_base's to 0.95 | | at least 12.5 | |" in table
+    assert "| SB3's best median seconds / ours_flat_base's to 0.95 | | | at least 12.5 | |" in table
+    assert "| sb3_ppo_flat_base | 0 | 1,600 | 800 | 0.930 |" in table
+
+
+def test_every_pipeline_runs_once_per_seed_and_counts_the_median(monkeypatch):
+    """Each seed reaches ours as train.py's ``seed`` and Stable-Baselines3's model as its seed; a pipeline's time is
+    the median over its seeds, one that never reached counted as never; where SB3's median never reached, the
+    median of each seed's seconds to the target or at the end of its budget bounds it from below."""
+    ours_seconds = {0: (10.0, 0.96), 1: (30.0, 0.96), 2: (20.0, 0.90)}  # seed 2 never reaches: median 30
+    their_seconds = {
+        "sb3_ddpg": {0: (300.0, 0.96), 1: (600.0, 0.90), 2: (900.0, 0.90)},  # median: never
+        "sb3_ppo": {0: (400.0, 0.90), 1: (500.0, 0.90), 2: (450.0, 0.96)},  # median: never
+    }
+    seen: dict[str, list] = {"ours": [], "sb3": []}
+
+    def seed_of(overrides) -> int:
+        (seed,) = (int(o.removeprefix("seed=")) for o in overrides if o.startswith("seed="))
+        return seed
+
+    def our_pipeline(frames, chunk, target, overrides):
+        seen["ours"].append(seed_of(overrides))
+        return fake_runs(ours_seconds[seed_of(overrides)])
+
+    def their_model(cfg, seed):  # what the real sb3() builds its model with; None: as if not installed
+        seen["sb3"].append(seed)
+
+    sb3 = quality.sb3
+
+    def their_pipeline(name, frames, chunk, target, threads, overrides):
+        assert sb3(name, frames, chunk, target, threads, overrides) is None
+        return fake_runs(their_seconds[name][seed_of(overrides)])
+
+    in_this_process(monkeypatch)
+    monkeypatch.setattr(quality, "BASES", {"_flat_base": quality.FLAT_BASE})
+    monkeypatch.setattr(quality, "OURS", {"ours": []})
+    monkeypatch.setattr(quality, "SB3", {name: ("agent=ddpg", their_model) for name in quality.SB3})
+    monkeypatch.setattr(quality, "ours", our_pipeline)
+    monkeypatch.setattr(quality, "sb3", their_pipeline)
+
+    record = quality.bench_quality(1600, 1600, 4800, seeds=(0, 1, 2))
+    assert seen == {"ours": [0, 1, 2], "sb3": [0, 1, 2, 0, 1, 2]}
+    assert [r["seed"] for r in record["ours_flat_base"]["by_seed"]] == [0, 1, 2]
+    assert record["ours_flat_base"]["seconds_to_target"] == 30.0
+    assert record["sb3_ddpg_flat_base"]["seconds_to_target"] is None
+    assert record["sb3_ddpg_flat_base"]["seconds_at_least"] == 600.0
+    assert record["sb3_ppo_flat_base"]["seconds_at_least"] == 450.0
+    assert record["sb3_flat_base_over_ours_flat_base_at_least"] == pytest.approx(450.0 / 30.0)
 
 
 @pytest.mark.parametrize("threads", [None, 1, "auto"])
@@ -92,7 +138,7 @@ def test_every_pipeline_runs_on_the_same_threads(monkeypatch, threads):
         seen["ours"].update(int(o.removeprefix("threads=")) for o in overrides if o.startswith("threads="))
         return fake_runs((10.0, 0.96))
 
-    def their_model(cfg):  # what the real sb3() runs its model on
+    def their_model(cfg, seed):  # what the real sb3() runs its model on
         seen["sb3"].add(torch.get_num_threads())
 
     sb3 = quality.sb3
@@ -101,7 +147,7 @@ def test_every_pipeline_runs_on_the_same_threads(monkeypatch, threads):
     monkeypatch.setattr(quality, "ours", our_pipeline)
     monkeypatch.setattr(quality, "sb3", lambda *args: sb3(*args) or fake_runs((100.0, 0.96)))
     before = torch.get_num_threads()
-    record = quality.bench_quality(1600, 1600, 4800, eager=True, threads=threads)
+    record = quality.bench_quality(1600, 1600, 4800, ("compiled", "eager"), threads=threads)
     expected = len(os.sched_getaffinity(0)) if threads is None else choose_threads(threads)[0]
     assert seen == {"ours": {expected}, "sb3": {expected}} and record["threads"] == expected
     assert torch.get_num_threads() == before  # the caller's count restored

@@ -44,7 +44,7 @@ from waterair.bench.env import ENV_HEADER, bench_channels, bench_env
 from waterair.bench.evaluate import bench_evaluate, evaluate_table
 from waterair.bench.montecarlo import MONTECARLO_HEADER, bench_montecarlo, montecarlo_table
 from waterair.bench.physics import bench_physics, physics_table
-from waterair.bench.quality import CHUNK, bench_quality, quality_table
+from waterair.bench.quality import CHUNK, MODES, bench_quality, quality_table
 from waterair.bench.sb3 import MISSING as SB3_MISSING
 from waterair.bench.sb3 import installed as sb3_installed
 from waterair.bench.summary import main as summary
@@ -117,7 +117,10 @@ def main(argv: list[str] | None = None) -> int:
     quality.add_argument("--flat-frames", type=int, default=160_000, help="the same on the flat-Snell base")
     quality.add_argument("--chunk", type=int, default=CHUNK, help="frames between two scorings of every pipeline")
     quality.add_argument("--sb3-frames", type=int, default=80_000, help="frames of each Stable-Baselines3 run at most")
-    quality.add_argument("--eager", action="store_true", help="also our pipeline eager, on each base")
+    quality.add_argument(
+        "--modes", nargs="+", choices=list(MODES), default=["compiled"], help="how our pipelines run: compiled, eager"
+    )
+    quality.add_argument("--seeds", nargs="+", type=int, default=[0], help="training seeds of every pipeline")
     quality.add_argument(
         "--threads", type=_threads, default=None, help="torch threads of every pipeline, auto or N (default: every CPU)"
     )
@@ -178,7 +181,15 @@ def main(argv: list[str] | None = None) -> int:
     elif args.suite == "quality":
         record = {"machine": machine(torch.device("cpu"), torch.float32)}
         record.update(
-            bench_quality(args.frames, args.flat_frames, args.sb3_frames, args.eager, args.chunk, threads=args.threads)
+            bench_quality(
+                args.frames,
+                args.flat_frames,
+                args.sb3_frames,
+                args.modes,
+                args.chunk,
+                threads=args.threads,
+                seeds=args.seeds,
+            )
         )
         print(quality_table(record))
     elif args.suite == "census":

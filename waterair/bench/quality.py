@@ -16,14 +16,18 @@ Stable-Baselines3 does not):
 * **ours_ddpg**: the same with ``agent=ddpg`` (:data:`OURS`), Stable-Baselines3 DDPG's counterpart, which like
   it learns from its first batch and is scored on its live actor;
 * each again with residual actions on flat-sea Snell (``_flat_base``, ``flat_frames``), so that the agent must
-  learn the tracking itself, and with the step and the update eager (``_eager``, :data:`EAGER`) when asked;
+  learn the tracking itself, and compiled (:data:`COMPILED`), eager (``_eager``, :data:`EAGER`) or both
+  (``modes``);
 * **sb3_ddpg, sb3_ppo**: Stable-Baselines3 DDPG and PPO on our Gymnasium view with the same observation,
   sensor, residual actions, reward and networks, each with our ``agent=ddpg`` or ``agent=ppo`` settings
-  (:mod:`.sb3`), one link at a time, on each base; one run each, scored every ``chunk`` frames until it
-  reaches the target or ``sb3_frames`` (its wall time includes model construction, not the scoring).
+  (:mod:`.sb3`), one link at a time, on each base, scored every ``chunk`` frames until it reaches the target
+  or ``sb3_frames`` (its wall time includes model construction, not the scoring).
+
+Every pipeline runs once per training seed (``seeds``: one run of one seed varies, and seeds vary more; see
+docs/benchmarks.md) and counts the median of their seconds (:func:`over_seeds`).
 
 Every greedy policy is scored with evaluation's own runner on the same 32 seas × 500 steps (evaluation seed
-12345, never a training seed), every pipeline at the same frames. The ratios are Stable-Baselines3's best time
+12345, never a training seed), every pipeline at the same frames. The ratios are Stable-Baselines3's best median time
 to the target over each of ours, per base.
 Needs ``stable_baselines3`` for the SB3 rows.
 """
@@ -31,9 +35,12 @@ Needs ``stable_baselines3`` for the SB3 rows.
 from __future__ import annotations
 
 import json
+import math
 import os
+import statistics
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import torch
@@ -60,6 +67,8 @@ EAGER = ["env.compile_kernel=false", "compile_update=false"]
 """Our pipeline without its compiles: a short run does not pay them back."""
 COMPILED = ["env.compile_kernel=true", "compile_update=true"]
 """Our pipeline compiled whatever its budget (``auto`` would not compile short budgets)."""
+MODES = {"compiled": ("", COMPILED), "eager": ("_eager", EAGER)}
+"""Each way our pipelines run: its record keys' suffix and its overrides."""
 BASES = {"": [], "_flat_base": FLAT_BASE}
 """Each base's name suffix and overrides."""
 OURS = {"ours": [], "ours_ddpg": ["agent=ddpg", "+experiment=short_run"]}
@@ -72,7 +81,7 @@ SB3 = {"sb3_ddpg": ("agent=ddpg", sb3_ddpg), "sb3_ppo": ("agent=ppo", sb3_ppo)}
 CHUNK = 1_600
 """Frames between two scorings of every pipeline (one batch of our PPO, one of Stable-Baselines3 PPO's rollouts)."""
 SCENARIO = Scenario("S1", "time to quality", None, ((12.0, 0.1, 0.0),), realisations=32, steps=500, seed=12345)
-PIPELINES = [f"{name}{base}{mode}" for base in BASES for name in (*OURS, *SB3) for mode in ("", "_eager")]
+PIPELINES = [f"{name}{base}{suffix}" for base in BASES for name in (*OURS, *SB3) for suffix, _ in MODES.values()]
 """Every pipeline's record key, in the table's order."""
 
 
@@ -118,7 +127,7 @@ def ours(frames: int, chunk: int, target: float, overrides: list[str]) -> dict:
     return {"overrides": overrides, "runs": runs, "seconds_to_target": _first_reaching(runs, target)}
 
 
-def sb3(name: str, frames: int, chunk: int, target: float, overrides: list[str], threads: int) -> dict | None:
+def sb3(name: str, frames: int, chunk: int, target: float, threads: int, overrides: list[str]) -> dict | None:
     """Stable-Baselines3 ``name`` (a key of :data:`SB3`) on the Gymnasium view of the same link (the defaults with
     ``overrides`` and that agent's settings) on ``threads`` torch threads, scored after every ``chunk`` frames until
     it reaches ``target`` or ``frames``: each (frames, seconds, ratio). Its seconds count model construction and
@@ -127,7 +136,7 @@ def sb3(name: str, frames: int, chunk: int, target: float, overrides: list[str],
     cfg = compose_training([agent, *POINT, *overrides])
     with torch_threads(threads):
         start = time.perf_counter()
-        model = build(cfg)
+        model = build(cfg, cfg.seed)
         if model is None:
             return None
         runs: list[dict] = []
@@ -165,49 +174,71 @@ def bench_quality(
     frames: int,
     flat_frames: int,
     sb3_frames: int,
-    eager: bool = False,
+    modes: Sequence[str] = ("compiled",),
     chunk: int = CHUNK,
     target: float = 0.95,
     threads: int | str | None = None,
+    seeds: Sequence[int] = (0,),
 ) -> dict:
-    """Every pipeline on each base, each on ``threads`` torch threads (a count, or ``auto``: train.py's rule;
-    default: every CPU this process may use), then per base the ratio of Stable-Baselines3's best seconds to
-    ``target`` over each of ours: exact where an SB3 run reached it, a lower bound (``..._at_least``) where none
-    had by the end of its budget."""
+    """Every pipeline on each base (ours in each of ``modes``, keys of :data:`MODES`), once per training seed in
+    ``seeds``, each on ``threads`` torch threads (a count, or ``auto``: train.py's rule; default: every CPU this
+    process may use), then per base the ratio of Stable-Baselines3's best median seconds to ``target`` over each of
+    ours (:func:`over_seeds`): exact where an SB3 pipeline's median reached it, a lower bound (``..._at_least``)
+    where none had by the end of its budget."""
     threads = len(os.sched_getaffinity(0)) if threads is None else choose_threads(threads)[0]
-    record = {"benchmark": "quality", "target": target, "chunk": chunk, "threads": threads}
+    record = {"benchmark": "quality", "target": target, "chunk": chunk, "threads": threads, "seeds": list(seeds)}
     record["scenario"] = "S1 point, 32 seas x 500 steps, seed 12345"
     for base, overrides in BASES.items():
         budget = flat_frames if base else frames
         for name, agent in OURS.items():
-            ours_on = [*agent, *overrides, f"threads={threads}"]
-            record[f"{name}{base}"] = in_fresh_python("ours", budget, chunk, target, [*ours_on, *COMPILED])
-            if eager:
-                record[f"{name}{base}_eager"] = in_fresh_python("ours", budget, chunk, target, [*ours_on, *EAGER])
+            for mode in modes:
+                suffix, how = MODES[mode]
+                ours_on = [*agent, *overrides, f"threads={threads}", *how]
+                record[f"{name}{base}{suffix}"] = over_seeds(seeds, "ours", budget, chunk, target, ours_on)
     for base, overrides in BASES.items():
         for name in SB3:
-            record[f"{name}{base}"] = in_fresh_python("sb3", name, sb3_frames, chunk, target, overrides, threads)
+            record[f"{name}{base}"] = over_seeds(seeds, "sb3", name, sb3_frames, chunk, target, threads, overrides)
     for base in BASES:
         theirs = [record[f"{name}{base}"] for name in SB3 if record[f"{name}{base}"] is not None]
-        for mine in (f"{name}{base}{mode}" for name in OURS for mode in ("", "_eager")):
+        for mine in (f"{name}{base}{suffix}" for name in OURS for suffix, _ in MODES.values()):
             if not theirs or mine not in record or record[mine]["seconds_to_target"] is None:
                 continue
             reached = [run["seconds_to_target"] for run in theirs if run["seconds_to_target"] is not None]
-            best = min(reached) if reached else min(run["runs"][-1]["seconds"] for run in theirs)
+            best = min(reached) if reached else min(run["seconds_at_least"] for run in theirs)
             key = f"sb3{base}_over_{mine}" + ("" if reached else "_at_least")
             record[key] = best / record[mine]["seconds_to_target"]
     return record
 
 
+def over_seeds(seeds: Sequence[int], kind: str, *args) -> dict | None:
+    """One pipeline, :func:`in_fresh_python` of ``kind`` and ``args`` (the overrides last) once per training seed
+    (``seed=N`` added to the overrides; None: the pipeline is not installed): each seed's result, the median over
+    the seeds of the seconds to the target (None when half or more of them never reached it) and a lower bound of
+    that median, each seed counting its seconds to the target or, where it never reached, at the end of its
+    budget."""
+    *leading, overrides = args
+    results = ((seed, in_fresh_python(kind, *leading, [*overrides, f"seed={seed}"])) for seed in seeds)
+    by_seed = [{"seed": seed, **result} for seed, result in results if result is not None]
+    if not by_seed:
+        return None
+    median = statistics.median(math.inf if r["seconds_to_target"] is None else r["seconds_to_target"] for r in by_seed)
+    last = (r["runs"][-1]["seconds"] if r["seconds_to_target"] is None else r["seconds_to_target"] for r in by_seed)
+    at_least = statistics.median(last)
+    reached = None if median == math.inf else median
+    return {"by_seed": by_seed, "seconds_to_target": reached, "seconds_at_least": at_least}
+
+
 def quality_table(record: dict) -> str:
-    lines = ["| pipeline | frames | seconds | greedy ratio to UB |", "|---|---|---|---|"]
+    lines = ["| pipeline | seed | frames | seconds | greedy ratio to UB |", "|---|---|---|---|---|"]
     for name in (name for name in PIPELINES if record.get(name)):
-        for run in record[name]["runs"]:
-            lines.append(f"| {name} | {run['frames']:,} | {run['seconds']:.0f} | {run['ratio_to_ub']:.3f} |")
+        for result in record[name]["by_seed"]:
+            for run in result["runs"]:
+                seconds, ratio = f"{run['seconds']:.0f}", f"{run['ratio_to_ub']:.3f}"
+                lines.append(f"| {name} | {result['seed']} | {run['frames']:,} | {seconds} | {ratio} |")
     for key, ratio in ((key, value) for key, value in record.items() if "_over_" in key):
         says = "at least " if key.endswith("_at_least") else ""
         mine = key.removesuffix("_at_least").split("_over_")[1]
-        lines.append(f"| SB3's best seconds / {mine}'s to {record['target']} | | {says}{ratio:.1f} | |")
+        lines.append(f"| SB3's best median seconds / {mine}'s to {record['target']} | | | {says}{ratio:.1f} | |")
     return "\n".join(lines)
 
 
