@@ -10,7 +10,7 @@ from tensordict import TensorDict
 from torchrl.objectives import SoftUpdate
 from torchrl.objectives.value import TD0Estimator
 
-from waterair.training.algorithms.ddpg import DDPG, RewardTarget
+from waterair.training.algorithms.ddpg import DDPG, RewardTarget, direct_losses
 from waterair.training.algorithms.off_policy import PolyakUpdate
 from waterair.training.algorithms.ppo import PPO
 from waterair.training.builders import make_actor, make_buffer, make_env
@@ -105,6 +105,42 @@ def test_at_discount_0_ddpg_s_target_is_the_reward_without_the_target_networks()
             params.apply_(lambda tensor: tensor.fill_(float("nan")))
     assert torch.isfinite(loss(batch.clone())["loss_value"])
     assert torch.isnan(torchrl_loss(batch.clone())["loss_value"])
+
+
+@pytest.mark.parametrize("loss_function", ["l2", "smooth_l1"])
+def test_the_direct_eager_losses_and_their_gradients_are_torchrl_s(loss_function):
+    """The eager update's losses at discount 0, on the networks' own modules, against TorchRL's ``DDPGLoss`` on the
+    same batch: the same two values, and after one backward of their sum the same gradient for every parameter
+    (the critic's from the value loss alone: the actor's loss leaves it out as TorchRL's detached copies do)."""
+    _, env, algorithm, loss, _ = ddpg_pieces(f"agent.loss.loss_function={loss_function}", seed=3)
+    direct = direct_losses(loss)
+    assert direct is not None and algorithm.loss_terms(loss).__qualname__ == direct.__qualname__
+    torch.manual_seed(4)
+    nudge(loss)
+    batch = replay(env, algorithm).sample(16)
+    actor_loss, value_loss = direct(batch.clone())
+    theirs = loss(batch.clone())
+    assert torch.equal(actor_loss, theirs["loss_actor"]) and torch.equal(value_loss, theirs["loss_value"])
+
+    def gradients(total) -> dict:
+        loss.zero_grad(set_to_none=True)
+        total.backward()
+        return {key: p.grad.clone() for key, p in loss.named_parameters() if p.grad is not None}
+
+    mine, expected = gradients(actor_loss + value_loss), gradients(theirs["loss_actor"] + theirs["loss_value"])
+    assert set(mine) == set(expected) and len(mine) == 12  # the online actor's and critic's, 3 layers each
+    for key, grad in mine.items():
+        torch.testing.assert_close(grad, expected[key], rtol=1e-6, atol=1e-8, msg=key)
+    assert all(p.requires_grad for p in loss.value_network_params.values(True, True))  # given back
+
+
+@pytest.mark.parametrize("override", ["agent.gamma=0.2", "compile_update=true"])
+def test_the_update_keeps_torchrl_s_loss_where_the_direct_one_would_differ_or_compiles(override):
+    _, _, algorithm, loss, _ = ddpg_pieces(override)
+    terms = algorithm.loss_terms(loss)
+    assert "direct_losses" not in terms.__qualname__
+    if override.startswith("agent.gamma"):
+        assert direct_losses(loss) is None  # its target needs the target networks
 
 
 def test_a_nonzero_discount_keeps_torchrl_s_estimator():

@@ -96,7 +96,8 @@ def bench_update(updates: int) -> dict:
             cfg.compile_update = compiled  # read by make_optimisers and make_update (ddpg holds this cfg)
             optim_actor, optim_critic = ddpg.make_optimisers(loss)
             if not compiled:
-                breakdown = _breakdown(buffer, batch, loss, target_update, optim_actor, optim_critic, updates)
+                terms = ddpg.loss_terms(loss)  # what the eager update computes its losses with
+                breakdown = _breakdown(buffer, batch, terms, target_update, optim_actor, optim_critic, updates)
                 record["breakdown_eager_ms"] = breakdown
             update = ddpg.make_update(loss, target_update, optim_actor, optim_critic)
             for i in range(30):  # warm-up (and the compile)
@@ -110,17 +111,17 @@ def bench_update(updates: int) -> dict:
     return record
 
 
-def _breakdown(buffer, size: int, loss, target_update, optim_actor, optim_critic, count: int) -> dict:
+def _breakdown(buffer, size: int, terms, target_update, optim_actor, optim_critic, count: int) -> dict:
     parts = {"sample": [], "loss": [], "backward_and_steps": [], "target_update": []}
     for _ in range(count):
         t0 = time.perf_counter()
         batch = buffer.sample(size)
         t1 = time.perf_counter()
-        losses = loss(batch)
+        actor_loss, value_loss = terms(batch)
         t2 = time.perf_counter()
         optim_actor.zero_grad(set_to_none=True)
         optim_critic.zero_grad(set_to_none=True)
-        (losses["loss_value"] + losses["loss_actor"]).backward()
+        (value_loss + actor_loss).backward()
         optim_critic.step()
         optim_actor.step()
         t3 = time.perf_counter()

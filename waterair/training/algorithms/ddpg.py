@@ -6,8 +6,13 @@ networks at rate ``agent.tau``; loss, exploration, update and replay are :class:
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import torch
 from omegaconf import DictConfig
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModule
+from torchrl.objectives.utils import distance_loss
 from torchrl.objectives.value import TD0Estimator
 
 from waterair.training.algorithms.off_policy import OffPolicy
@@ -55,3 +60,43 @@ class DDPG(OffPolicy):
             # module, which nn.Module's __setattr__ registers as a submodule of that name instead
             loss._value_estimator = estimator
         return loss, target_update
+
+    def loss_terms(self, loss) -> Callable[[TensorDict], tuple[torch.Tensor, torch.Tensor]]:
+        """:class:`OffPolicy`'s, or, for an eager update at discount 0, :func:`direct_losses`: the same losses
+        without TorchRL's per-call machinery."""
+        direct = None if self.cfg.compile_update else direct_losses(loss)
+        return direct or super().loss_terms(loss)
+
+
+def direct_losses(loss) -> Callable[[TensorDict], tuple[torch.Tensor, torch.Tensor]] | None:
+    """``DDPGLoss``'s actor and value losses computed on its networks' own modules and parameters, or None where
+    that would not be the same loss: unless the actor and the critic are plain ``TensorDictModule`` s (one output
+    each), the target is the reward (:class:`RewardTarget`) and the losses are means.
+
+    TorchRL's loss swaps each network's parameters into it for every call (its functional copies are the same
+    tensors), copies and detaches the batch, and writes every output through a TensorDict; eager, that machinery
+    took about a third of an update (docs/benchmarks.md, "Training"). Here the critic's value loss is
+    ``distance_loss(Q(s, a), r)`` and the actor's −Q(s, μ(s)) with the critic's parameters out of the graph, as
+    TorchRL's detached copies keep them; the priority TorchRL writes back into the batch for a prioritised replay
+    is left out (the replay is uniform). Compiled updates keep TorchRL's loss, which compiles to the same."""
+    actor, critic = loss.actor_network, loss.value_network
+    plain = all(type(m).forward is TensorDictModule.forward and len(m.out_keys) == 1 for m in (actor, critic))
+    if not (plain and isinstance(loss.value_estimator, RewardTarget) and loss.reduction == "mean"):
+        return None
+    action_key, reward_key = actor.out_keys[0], ("next", loss.tensor_keys.reward)
+    critic_params = list(loss.value_network_params.values(True, True))  # the critic module's own tensors
+
+    def terms(batch: TensorDict) -> tuple[torch.Tensor, torch.Tensor]:
+        value = critic.module(*(batch.get(key) for key in critic.in_keys))
+        value_loss = distance_loss(value, batch.get(reward_key), loss_function=loss.loss_function).mean()
+        action = actor.module(*(batch.get(key) for key in actor.in_keys))
+        for parameter in critic_params:
+            parameter.requires_grad_(False)
+        try:
+            chosen = critic.module(*(action if key == action_key else batch.get(key) for key in critic.in_keys))
+        finally:
+            for parameter in critic_params:
+                parameter.requires_grad_(True)
+        return -chosen.mean(), value_loss
+
+    return terms

@@ -7,6 +7,7 @@ transition goes to the replay buffer, and each update samples from all of it (do
 from __future__ import annotations
 
 from abc import abstractmethod
+from collections.abc import Callable
 from typing import ClassVar
 
 import torch
@@ -123,16 +124,27 @@ class OffPolicy(Algorithm):
     def make_optimisers(self, loss):
         return adam(self.cfg, loss.actor_network_params, getattr(loss, self.value_params))
 
+    def loss_terms(self, loss) -> Callable[[TensorDict], tuple[torch.Tensor, torch.Tensor]]:
+        """The (actor, critic) losses of a batch: the loss module's own (its other outputs, pred_value and the
+        like, still require grad and are left out)."""
+        value_key = self.value_loss
+
+        def terms(batch: TensorDict) -> tuple[torch.Tensor, torch.Tensor]:
+            losses = loss(batch)
+            return losses["loss_actor"], losses[value_key]
+
+        return terms
+
     def make_update(self, loss, target_update, optim_actor, optim_critic) -> Update:
-        """One backward of the critic's and (every ``policy_delay`` updates) the actor's loss, both optimisers'
-        steps, then the soft target update; returns the (actor, critic) losses as a detached ``[2]`` tensor."""
-        value_key, policy_delay = self.value_loss, self.policy_delay
+        """One backward of the critic's and (every ``policy_delay`` updates) the actor's loss (:meth:`loss_terms`),
+        both optimisers' steps, then the soft target update; returns the (actor, critic) losses as a detached
+        ``[2]`` tensor."""
+        terms, policy_delay = self.loss_terms(loss), self.policy_delay
 
         def update(batch: TensorDict, count: int) -> torch.Tensor:
-            losses = loss(batch)
-            # Only the loss_* entries: the other outputs (pred_value, ...) still require grad.
+            actor_loss, value_loss = terms(batch)
             update_actor = count % policy_delay == 0
-            total = losses[value_key] + (losses["loss_actor"] if update_actor else 0.0)
+            total = value_loss + (actor_loss if update_actor else 0.0)
             optim_actor.zero_grad(set_to_none=True)
             optim_critic.zero_grad(set_to_none=True)
             total.backward()
@@ -142,7 +154,7 @@ class OffPolicy(Algorithm):
             target_update.step()
             # Detached, not .item(): no host synchronisation (and no graph break) per update; the loop
             # turns a whole batch of these into numbers once.
-            return torch.stack((losses["loss_actor"], losses[value_key])).detach()
+            return torch.stack((actor_loss, value_loss)).detach()
 
         return torch_compile(update) if self.cfg.compile_update else update
 
