@@ -27,8 +27,8 @@ Every pipeline runs once per training seed (``seeds``: one run of one seed varie
 docs/benchmarks.md) and counts the median of their seconds (:func:`over_seeds`).
 
 Every greedy policy is scored with evaluation's own runner on the same 32 seas × 500 steps (evaluation seed
-12345, never a training seed), every pipeline at the same frames. The ratios are Stable-Baselines3's best median time
-to the target over each of ours, per base.
+12345, never a training seed), every pipeline at the same frames. The ratios are Stable-Baselines3's best median
+time to the target over each of ours, per base.
 Needs ``stable_baselines3`` for the SB3 rows.
 """
 

@@ -74,11 +74,12 @@ def direct_losses(loss) -> Callable[[TensorDict], tuple[torch.Tensor, torch.Tens
     each), the target is the reward (:class:`RewardTarget`) and the losses are means.
 
     TorchRL's loss swaps each network's parameters into it for every call (its functional copies are the same
-    tensors), copies and detaches the batch, and writes every output through a TensorDict; eager, that machinery
-    took about a third of an update (docs/benchmarks.md, "Training"). Here the critic's value loss is
-    ``distance_loss(Q(s, a), r)`` and the actor's −Q(s, μ(s)) with the critic's parameters out of the graph, as
-    TorchRL's detached copies keep them; the priority TorchRL writes back into the batch for a prioritised replay
-    is left out (the replay is uniform). Compiled updates keep TorchRL's loss, which compiles to the same."""
+    tensors), copies and detaches the batch, and writes every output through a TensorDict: eager, about a third of
+    an update's time at batch 64 (docs/benchmarks.md, "Training", has the update against bare PyTorch). Here the
+    critic's value loss is ``distance_loss(Q(s, a), r)`` and the actor's −Q(s, μ(s)) with the critic's parameters
+    out of the graph, as TorchRL's detached copies keep them; the priority TorchRL writes back into the batch for a
+    prioritised replay is left out (the replay is uniform). Compiled updates keep TorchRL's loss, which compiles
+    to the same."""
     actor, critic = loss.actor_network, loss.value_network
     plain = all(type(m).forward is TensorDictModule.forward and len(m.out_keys) == 1 for m in (actor, critic))
     if not (plain and isinstance(loss.value_estimator, RewardTarget) and loss.reduction == "mean"):
