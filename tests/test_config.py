@@ -72,9 +72,9 @@ def test_the_short_run_preset_changes_the_collection_and_the_saved_policy_only(a
     assert before.keys() == after.keys()
     changed = {key: (before[key], after[key]) for key in before if repr(before[key]) != repr(after[key])}
     assert changed == {
-        "env.num_envs": (64, 16),
-        "collector.frames_per_batch": (1600, 400),
-        "collector.init_random_frames": (16000, 400),
+        "env.num_envs": (64, 32),
+        "collector.frames_per_batch": (1600, 800),
+        "collector.init_random_frames": (16000, 800),
         "agent.policy_weights": ("average", "last"),
     }
 

@@ -73,7 +73,7 @@ BASES = {"": [], "_flat_base": FLAT_BASE}
 """Each base's name suffix and overrides."""
 OURS = {"ours": [], "ours_ddpg": ["agent=ddpg", "+experiment=short_run"]}
 """Each of our pipelines: its overrides (the defaults are PPO). DDPG with the preset for short off-policy runs
-(``conf/experiment/short_run.yaml``): learning from its first 400-frame batch on, as Stable-Baselines3 DDPG does,
+(``conf/experiment/short_run.yaml``): learning from its first batch on, as Stable-Baselines3 DDPG does,
 and scored on its live actor (the defaults' 16,000 random frames first, 64 links and the actor's Polyak average are
 for long runs: docs/benchmarks.md, "Time to quality")."""
 SB3 = {"sb3_ddpg": ("agent=ddpg", sb3_ddpg), "sb3_ppo": ("agent=ppo", sb3_ppo)}
