@@ -200,13 +200,14 @@ def bench_quality(
             record[f"{name}{base}"] = over_seeds(seeds, "sb3", name, sb3_frames, chunk, target, threads, overrides)
     for base in BASES:
         theirs = [record[f"{name}{base}"] for name in SB3 if record[f"{name}{base}"] is not None]
+        if not theirs:
+            continue
+        reached = [run["seconds_to_target"] for run in theirs if run["seconds_to_target"] is not None]
+        best = min(reached) if reached else min(run["seconds_at_least"] for run in theirs)
         for mine in (f"{name}{base}{suffix}" for name in OURS for suffix, _ in MODES.values()):
-            if not theirs or mine not in record or record[mine]["seconds_to_target"] is None:
-                continue
-            reached = [run["seconds_to_target"] for run in theirs if run["seconds_to_target"] is not None]
-            best = min(reached) if reached else min(run["seconds_at_least"] for run in theirs)
-            key = f"sb3{base}_over_{mine}" + ("" if reached else "_at_least")
-            record[key] = best / record[mine]["seconds_to_target"]
+            if mine in record and record[mine]["seconds_to_target"] is not None:
+                key = f"sb3{base}_over_{mine}" + ("" if reached else "_at_least")
+                record[key] = best / record[mine]["seconds_to_target"]
     return record
 
 
