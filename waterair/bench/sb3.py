@@ -42,7 +42,7 @@ def sb3_ddpg(cfg: DictConfig, seed: int = 0):
     import numpy as np
 
     ratio = Fraction(cfg.collector.updates_per_frame).limit_denominator(64)  # 0.15625: 5 updates every 32 steps
-    return DDPG(
+    model = DDPG(
         "MlpPolicy",
         _gym_env(cfg, seed),
         learning_rate=cfg.critic.lr,
@@ -58,6 +58,7 @@ def sb3_ddpg(cfg: DictConfig, seed: int = 0):
         device="cpu",
         seed=seed,
     )
+    return _logging_nowhere(model)
 
 
 def sb3_ppo(cfg: DictConfig, seed: int = 0):
@@ -74,7 +75,7 @@ def sb3_ppo(cfg: DictConfig, seed: int = 0):
 
     frames, batch = cfg.collector.frames_per_batch, cfg.buffer.batch_size
     loss = cfg.agent.loss
-    return PPO(
+    model = PPO(
         "MlpPolicy",
         _gym_env(cfg, seed),
         learning_rate=cfg.actor.lr,
@@ -96,6 +97,17 @@ def sb3_ppo(cfg: DictConfig, seed: int = 0):
         device="cpu",
         seed=seed,
     )
+    return _logging_nowhere(model)
+
+
+def _logging_nowhere(model):
+    """``model`` with a logger that writes nothing: without one of its own, each ``learn`` of Stable-Baselines3's
+    makes a folder ``SB3-<date and time>`` in the temporary directory (a time-to-quality run learns hundreds of
+    times)."""
+    from stable_baselines3.common.logger import Logger
+
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
 
 
 def _gym_env(cfg: DictConfig, seed: int):
