@@ -250,8 +250,7 @@ def test_the_full_channels_beacon_agrees_with_the_monte_carlo_reference_on_measu
         expected = read_beacon(reference.light, tx_dir, rx_dir, Beacon(), OPTICS)
         parts = []
         for group in range(groups):
-            light = reference.light.clone()
-            light.weight = reference.light.weight * (reference.ray % groups == group)
+            light = reference.light._replace(weight=reference.light.weight * (reference.ray % groups == group))
             parts.append(read_beacon(light, tx_dir, rx_dir, Beacon(), OPTICS).incoming)
         spread = angle_between(torch.stack(parts), expected.incoming.expand(groups, -1, -1)).pow(2).sum(0)
         error = spread.sqrt() / math.sqrt(groups * (groups - 1))

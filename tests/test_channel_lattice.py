@@ -139,7 +139,7 @@ def test_straight_facing_holds_against_the_local_estimate_with_the_field_of_view
     up[:, 2] = 1.0
     exact, se = standard_error(reference, up, -up, OPTICS)
     light = lattice_light(model, surface, tx, rx, t, up)
-    rays = LightSamples(weight=light.weight, departure=light.departure, arrival=light.arrival, batch_size=light.shape)
+    rays = LightSamples(weight=light.weight, departure=light.departure, arrival=light.arrival)
     errors = []
     for samples in (light, rays):
         gain = model.receive(samples, up, -up).gain

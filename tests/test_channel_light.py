@@ -5,7 +5,7 @@ from conftest import F64, ends
 from test_channel_two_scale import two_scale
 
 from waterair.physics.channel import LightSamples, Transceiver, pointed_gains, pointing, received_gain, upper_bound
-from waterair.physics.channel.light import paper_gains
+from waterair.physics.channel.light import paper_gains, sliced
 from waterair.physics.sea import sea_state
 from waterair.physics.surface import WaveSurface
 
@@ -41,7 +41,7 @@ def test_a_rays_gains_from_sines_and_cosines_are_the_papers_of_the_angles():
     surface = WaveSurface.sample(sea_state(wind=12.0, spectrum="elfouhaily", n_dir=16), 8, seed=3, dtype=F64)
     tx, rx = ends(0.5, 8)
     light = two_scale(surface, tx, rx, 2.0, OPTICS)
-    rays = LightSamples(weight=light.weight, departure=light.departure, arrival=light.arrival, batch_size=light.shape)
+    rays = LightSamples(weight=light.weight, departure=light.departure, arrival=light.arrival)
     _, best_tx, best_rx = upper_bound(rays, OPTICS)
     for offset in (0.0, OPTICS.divergence, 0.3 * OPTICS.half_fov, 1.2 * OPTICS.half_fov):
         tx_dir = pointing(best_tx[:, :2] + offset, up=True)
@@ -61,7 +61,7 @@ def test_the_bound_with_a_divergence_per_link_is_each_links_own_bound():
     divergences = torch.tensor([0.005, 0.01, 0.02, 0.04, 0.06, 0.08], dtype=F64)
     together = upper_bound(light, Transceiver(divergence=divergences))
     for link, divergence in enumerate(divergences.tolist()):
-        alone = upper_bound(light[link : link + 1], Transceiver(divergence=divergence))
+        alone = upper_bound(sliced(light, slice(link, link + 1)), Transceiver(divergence=divergence))
         for got, expected in zip(together, alone, strict=True):
             torch.testing.assert_close(got[link : link + 1], expected, rtol=1e-12, atol=1e-300)
     assert len({round(value, 12) for value in together[0].tolist()}) == 6  # the divergences made a difference

@@ -35,9 +35,7 @@ def test_monte_carlo_on_a_calm_sea_counts_the_closed_form():
     wide = Transceiver(divergence=1.5, half_fov=1.5)  # G_D within 0.2 % of 1 over the rays, G_A constant
     gain, error = standard_error(result, axis, -arrival, wide)
     closed = flat_sea_irradiance(tx, rx, OPTICS) * received_gain(
-        LightSamples(
-            weight=torch.ones(2, 1, dtype=F64), departure=axis[:, None], arrival=arrival[:, None], batch_size=[2, 1]
-        ),
+        LightSamples(weight=torch.ones(2, 1, dtype=F64), departure=axis[:, None], arrival=arrival[:, None]),
         axis,
         -arrival,
         wide,

@@ -36,7 +36,7 @@ import torch
 from waterair.core.validation import check_int, check_range
 from waterair.physics.channel.facets import aperture_slope_variance, facet_normal, interception, slope_density
 from waterair.physics.channel.geometry import Transceiver
-from waterair.physics.channel.light import LightSamples, Reception, receive, repeated, sliced
+from waterair.physics.channel.light import LightSamples, Reception, joined, receive, repeated, sliced
 from waterair.physics.channel.model import ChannelModel, LinkEnds
 from waterair.physics.channel.ray_tube import calm_sea_reference
 from waterair.physics.optics import beam_divergence, water_transmittance
@@ -132,9 +132,7 @@ class TwoScale(ChannelModel):
         # inductor cache (a full recompile per process); basis is a lattice's, never singular
         apart = torch.linalg.solve_ex(basis, shift).result
         share = beam_share(torch.linalg.vector_norm(apart, dim=-1)).unsqueeze(-1)
-        blended = [_scaled(everywhere, 1.0 - share), _scaled(on_beam, share)]
-        pointed: LightSamples = torch.cat([everywhere, *blended], dim=1)  # type: ignore[assignment]
-        return pointed
+        return joined(everywhere, _scaled(everywhere, 1.0 - share), _scaled(on_beam, share))
 
     def unpointed_light(self, light: LightSamples) -> LightSamples:
         """The lattice around the tracked point (the bound's), without the blend placed for the pointing."""
@@ -153,13 +151,7 @@ class TwoScale(ChannelModel):
 
 
 def _scaled(light: LightSamples, factor: torch.Tensor) -> LightSamples:
-    return LightSamples(
-        weight=light.weight * factor,
-        departure=light.departure,
-        arrival=light.arrival,
-        cell=light.cell,
-        batch_size=light.batch_size,
-    )
+    return LightSamples(weight=light.weight * factor, departure=light.departure, arrival=light.arrival, cell=light.cell)
 
 
 def beam_share(apart: torch.Tensor) -> torch.Tensor:
@@ -256,7 +248,7 @@ def two_scale_light(
 
     A pure tensor function (no data-dependent Python), so that it compiles into the step's graph.
     """
-    batch, dtype = tx.shape[0], tx.dtype
+    dtype = tx.dtype
     centre, basis, nodes, span = lattice
     grid = torch.linspace(-span, span, nodes, dtype=dtype, device=tx.device)
     xy = lattice_nodes(centre, basis, grid)
@@ -281,7 +273,7 @@ def two_scale_light(
     weight = area * transmitted * intercepted / r1**2 * density * to_receiver
     weight = torch.where(upward & torch.isfinite(weight), weight, torch.zeros_like(weight))
     cell = across_cells(u2, nodes)
-    return LightSamples(weight=weight, departure=u1, arrival=u2, cell=cell, batch_size=[batch, nodes * nodes])
+    return LightSamples(weight=weight, departure=u1, arrival=u2, cell=cell)
 
 
 def across_cells(values: torch.Tensor, nodes: int) -> torch.Tensor:

@@ -21,7 +21,6 @@ import math
 from typing import NamedTuple
 
 import torch
-from tensordict import TensorClass
 
 from waterair.core.extern import written
 from waterair.physics.channel.geometry import Transceiver
@@ -40,20 +39,29 @@ UPPER_BOUND_ITERATIONS = 4
 """Alternating ascent steps of :func:`upper_bound` from each of its two starts."""
 
 
-class LightSamples(TensorClass):
-    """The light reaching each link's receiver as N weighted rays (leading shape ``[B, N]``).
+class LightSamples(NamedTuple):
+    """The light reaching each link's receiver as N weighted rays (leading shape ``[B, N]``, :attr:`shape`).
 
     ``weight`` W (1/m², ≥ 0; padding samples have 0), ``departure`` u1 and ``arrival`` u2 (unit,
     ``[B, N, 3]``: from T toward the surface, from the surface toward R). ``cell``: where the samples are the
     nodes of a lattice, the change of each one's arrival direction across its cell along the lattice's two axes
     ``[B, N, 2, 3]``, over which the receiver's field of view is averaged (docs/model.md §4.3); None where each
     sample is a ray.
+
+    A named tuple, not a tensorclass: a compiled step builds several, and ``torch.compile`` traces a tensorclass's
+    construction through tensordict's Python (about 60 ms each), a named tuple's for nothing. :func:`sliced`,
+    :func:`repeated` and :func:`joined` do what indexing, ``repeat`` and ``torch.cat`` would.
     """
 
     weight: torch.Tensor
     departure: torch.Tensor
     arrival: torch.Tensor
     cell: torch.Tensor | None = None
+
+    @property
+    def shape(self) -> torch.Size:
+        """The leading shape ``[B, N]``: links, samples."""
+        return self.weight.shape
 
 
 class Reception(NamedTuple):
@@ -244,27 +252,34 @@ def upper_bound(
 
 
 def sliced(light: LightSamples, rows: slice = slice(None), samples: slice = slice(None)) -> LightSamples:
-    """``light[rows, samples]``, sliced field by field: a compiled step's batch size stays symbolic (the
-    tensorclass's own slicing evaluates it, so torch would compile a graph per batch size)."""
-    weight = light.weight[rows, samples]
+    """``light[rows, samples]``: the links ``rows`` and the samples ``samples`` of each."""
     return LightSamples(
-        weight=weight,
+        weight=light.weight[rows, samples],
         departure=light.departure[rows, samples],
         arrival=light.arrival[rows, samples],
         cell=None if light.cell is None else light.cell[rows, samples],
-        batch_size=weight.shape,
     )
 
 
 def repeated(light: LightSamples, copies: int) -> LightSamples:
     """``light`` ``[b, N]`` stacked ``copies`` times along the links, ``[copies · b, N]``."""
-    weight = light.weight.repeat(copies, 1)
     return LightSamples(
-        weight=weight,
+        weight=light.weight.repeat(copies, 1),
         departure=light.departure.repeat(copies, 1, 1),
         arrival=light.arrival.repeat(copies, 1, 1),
         cell=None if light.cell is None else light.cell.repeat(copies, 1, 1, 1),
-        batch_size=weight.shape,
+    )
+
+
+def joined(*lights: LightSamples) -> LightSamples:
+    """The samples of ``lights`` (each ``[B, N_i]``) side by side, ``[B, Σ N_i]``; with cells only where every one
+    has them."""
+    cells = [light.cell for light in lights]
+    return LightSamples(
+        weight=torch.cat([light.weight for light in lights], dim=1),
+        departure=torch.cat([light.departure for light in lights], dim=1),
+        arrival=torch.cat([light.arrival for light in lights], dim=1),
+        cell=None if any(cell is None for cell in cells) else torch.cat(cells, dim=1),  # type: ignore[arg-type]
     )
 
 

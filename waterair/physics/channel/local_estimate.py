@@ -168,11 +168,9 @@ def local_estimate(
         target = rx[:, None, None, :] + offset
         pieces.append(_estimate_chunk(sea, tx, t, optics, request, RayChunk(start, tangent, frame, target), unresolved))
     weight, departure, arrival, ray = (torch.cat(part, dim=1) for part in zip(*pieces, strict=True))
-    light = LightSamples(
-        weight=weight / (rays * points), departure=departure, arrival=arrival, batch_size=[batch, rays * points]
-    )
+    light = LightSamples(weight=weight / (rays * points), departure=departure, arrival=arrival)
     counts = torch.full((batch,), rays, dtype=torch.int64, device=device)
-    return MonteCarloLight(light=light, ray=ray, rays=counts, batch_size=[batch])
+    return MonteCarloLight(light=light, ray=ray, rays=counts)
 
 
 def _estimate_chunk(sea, tx, t, optics: Transceiver, request: RayRequest, chunk: RayChunk, unresolved):

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import torch
-from tensordict import TensorClass
 
 from waterair.core.validation import check_int, check_range
 from waterair.physics.channel.facets import interception
@@ -43,7 +42,7 @@ from waterair.physics.paths import PathSolution
 from waterair.physics.surface import Harmonics
 
 
-class MonteCarloLight(TensorClass):
+class MonteCarloLight(NamedTuple):
     """The hits of one trace: ``light`` (:class:`LightSamples`, ``[B, H]``, padded with zero weights),
     ``ray`` ``[B, H]`` (int64, which surface ray each hit came from, for the standard error) and
     ``rays`` ``[B]`` (int64, the surface rays traced per link)."""
@@ -239,10 +238,9 @@ def trace(
         weight=gather(torch.where(keep, weight, torch.zeros_like(weight))),
         departure=gather(departure),
         arrival=gather(arrival),
-        batch_size=[batch, hits],
     )
     counts = torch.full((batch,), rays, dtype=torch.int64, device=device)
-    return MonteCarloLight(light=light, ray=gather(ray), rays=counts, batch_size=[batch])
+    return MonteCarloLight(light=light, ray=gather(ray), rays=counts)
 
 
 def ray_offsets(request: RayRequest, sea: Harmonics, tx: torch.Tensor) -> Iterator[tuple[int, torch.Tensor]]:

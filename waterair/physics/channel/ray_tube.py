@@ -172,5 +172,4 @@ def ray_tube_light(
         weight=factor.unsqueeze(1),
         departure=u1.unsqueeze(1),
         arrival=u2.unsqueeze(1),
-        batch_size=[point.shape[0], 1],
     )

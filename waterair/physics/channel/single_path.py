@@ -55,7 +55,6 @@ class SinglePath(ChannelModel):
             weight=weight.unsqueeze(1),
             departure=path.departure.unsqueeze(1),
             arrival=path.arrival.unsqueeze(1),
-            batch_size=[weight.shape[0], 1],
         )
 
 
