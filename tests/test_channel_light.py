@@ -5,7 +5,7 @@ from conftest import F64, ends
 from test_channel_two_scale import two_scale
 
 from waterair.physics.channel import LightSamples, Transceiver, pointed_gains, pointing, received_gain, upper_bound
-from waterair.physics.channel.light import paper_gains, sliced
+from waterair.physics.channel.light import joined, paper_gains, repeated, sliced
 from waterair.physics.sea import sea_state
 from waterair.physics.surface import WaveSurface
 
@@ -65,3 +65,37 @@ def test_the_bound_with_a_divergence_per_link_is_each_links_own_bound():
         for got, expected in zip(together, alone, strict=True):
             torch.testing.assert_close(got[link : link + 1], expected, rtol=1e-12, atol=1e-300)
     assert len({round(value, 12) for value in together[0].tolist()}) == 6  # the divergences made a difference
+
+
+def test_joined_sliced_and_repeated_light_is_the_sum_of_its_parts():
+    """The gain of light joined side by side is the sum of its parts' gains; slicing the samples back gives each
+    part; repeating the links repeats each link's gain; a part without cells leaves the joined light without."""
+    surface = WaveSurface.sample(sea_state(wind=12.0, spectrum="elfouhaily", n_dir=16), 4, seed=2, dtype=F64)
+    tx, rx = ends(0.3, 4)
+    lattice = two_scale(surface, tx, rx, 1.0, OPTICS)
+    ray = LightSamples(
+        weight=lattice.weight[:, :1] * 2.0, departure=lattice.departure[:, :1], arrival=lattice.arrival[:, :1]
+    )
+    up = torch.zeros_like(tx)
+    up[:, 2] = 1.0
+    gain = {name: received_gain(light, up, -up, OPTICS) for name, light in (("lattice", lattice), ("ray", ray))}
+    both = joined(lattice, ray)
+    assert both.shape == (4, lattice.shape[1] + 1) and both.cell is None and lattice.cell is not None
+    without_cells = lattice._replace(cell=None)
+    torch.testing.assert_close(
+        received_gain(both, up, -up, OPTICS),
+        received_gain(without_cells, up, -up, OPTICS) + gain["ray"],
+        rtol=1e-12,
+        atol=0,
+    )
+    twice = joined(lattice, lattice)
+    torch.testing.assert_close(received_gain(twice, up, -up, OPTICS), 2 * gain["lattice"], rtol=1e-12, atol=0)
+    back = sliced(twice, samples=slice(lattice.shape[1], None))
+    assert all(torch.equal(a, b) for a, b in zip(back, lattice, strict=True))
+    copies = repeated(sliced(lattice, rows=slice(1, 3)), 3)
+    torch.testing.assert_close(
+        received_gain(copies, up[:1].expand(6, 3), -up[:1].expand(6, 3), OPTICS),
+        gain["lattice"][1:3].repeat(3),
+        rtol=1e-12,
+        atol=0,
+    )
