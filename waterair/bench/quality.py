@@ -70,7 +70,8 @@ COMPILED = ["env.compile_kernel=true", "compile_update=true"]
 MODES = {"compiled": ("", COMPILED), "eager": ("_eager", EAGER)}
 """Each way our pipelines run: its record keys' suffix and its overrides."""
 BASES = {"": [], "_flat_base": FLAT_BASE}
-"""Each base's name suffix and overrides."""
+"""Each base's name suffix and overrides; on the command line (``--bases``) ``default`` and ``flat_base``
+(:func:`base_name`)."""
 OURS = {"ours": [], "ours_ddpg": ["agent=ddpg", "+experiment=short_run"]}
 """Each of our pipelines: its overrides (the defaults are PPO). DDPG with the preset for short off-policy runs
 (``conf/experiment/short_run.yaml``): learning from its first batch on, as Stable-Baselines3 DDPG does,
@@ -83,6 +84,11 @@ CHUNK = 1_600
 SCENARIO = Scenario("S1", "time to quality", None, ((12.0, 0.1, 0.0),), realisations=32, steps=500, seed=12345)
 PIPELINES = [f"{name}{base}{suffix}" for base in BASES for name in (*OURS, *SB3) for suffix, _ in MODES.values()]
 """Every pipeline's record key, in the table's order."""
+
+
+def base_name(suffix: str) -> str:
+    """A base's name on the command line: ``default`` for ``""``, ``flat_base`` for ``"_flat_base"``."""
+    return suffix.removeprefix("_") or "default"
 
 
 def score(cfg, policy) -> float:
@@ -179,27 +185,39 @@ def bench_quality(
     target: float = 0.95,
     threads: int | str | None = None,
     seeds: Sequence[int] = (0,),
+    pipelines: Sequence[str] | None = None,
+    bases: Sequence[str] | None = None,
 ) -> dict:
     """Every pipeline on each base (ours in each of ``modes``, keys of :data:`MODES`), once per training seed in
     ``seeds``, each on ``threads`` torch threads (a count, or ``auto``: train.py's rule; default: every CPU this
     process may use), then per base the ratio of Stable-Baselines3's best median seconds to ``target`` over each of
     ours (:func:`over_seeds`): exact where an SB3 pipeline's median reached it, a lower bound (``..._at_least``)
-    where none had by the end of its budget."""
+    where none had by the end of its budget. ``pipelines`` (names of :data:`OURS` and :data:`SB3`) and ``bases``
+    (``default``, ``flat_base``) choose some of them (default: all)."""
+    pipelines = [*OURS, *SB3] if pipelines is None else list(pipelines)
+    bases = [base_name(base) for base in BASES] if bases is None else list(bases)
+    for asked, known, what in (
+        (pipelines, [*OURS, *SB3], "pipeline"),
+        (bases, [base_name(base) for base in BASES], "base"),
+    ):
+        if unknown := sorted(set(asked) - set(known)):
+            raise ValueError(f"no time-to-quality {what} {', '.join(unknown)}: one of {', '.join(known)}")
     threads = len(os.sched_getaffinity(0)) if threads is None else choose_threads(threads)[0]
     record = {"benchmark": "quality", "target": target, "chunk": chunk, "threads": threads, "seeds": list(seeds)}
-    record["scenario"] = "S1 point, 32 seas x 500 steps, seed 12345"
-    for base, overrides in BASES.items():
+    record |= {"scenario": "S1 point, 32 seas x 500 steps, seed 12345", "pipelines": pipelines, "bases": bases}
+    chosen = {base: overrides for base, overrides in BASES.items() if base_name(base) in bases}
+    for base, overrides in chosen.items():
         budget = flat_frames if base else frames
-        for name, agent in OURS.items():
+        for name, agent in ((name, agent) for name, agent in OURS.items() if name in pipelines):
             for mode in modes:
                 suffix, how = MODES[mode]
                 ours_on = [*agent, *overrides, f"threads={threads}", *how]
                 record[f"{name}{base}{suffix}"] = over_seeds(seeds, "ours", budget, chunk, target, ours_on)
-    for base, overrides in BASES.items():
-        for name in SB3:
+    for base, overrides in chosen.items():
+        for name in (name for name in SB3 if name in pipelines):
             record[f"{name}{base}"] = over_seeds(seeds, "sb3", name, sb3_frames, chunk, target, threads, overrides)
-    for base in BASES:
-        theirs = [record[f"{name}{base}"] for name in SB3 if record[f"{name}{base}"] is not None]
+    for base in chosen:
+        theirs = [record[f"{name}{base}"] for name in SB3 if record.get(f"{name}{base}") is not None]
         if not theirs:
             continue
         reached = [run["seconds_to_target"] for run in theirs if run["seconds_to_target"] is not None]
