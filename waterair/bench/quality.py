@@ -194,12 +194,10 @@ def bench_quality(
     ours (:func:`over_seeds`): exact where an SB3 pipeline's median reached it, a lower bound (``..._at_least``)
     where none had by the end of its budget. ``pipelines`` (names of :data:`OURS` and :data:`SB3`) and ``bases``
     (``default``, ``flat_base``) choose some of them (default: all)."""
-    pipelines = [*OURS, *SB3] if pipelines is None else list(pipelines)
-    bases = [base_name(base) for base in BASES] if bases is None else list(bases)
-    for asked, known, what in (
-        (pipelines, [*OURS, *SB3], "pipeline"),
-        (bases, [base_name(base) for base in BASES], "base"),
-    ):
+    names, base_names = [*OURS, *SB3], [base_name(base) for base in BASES]
+    pipelines = names if pipelines is None else list(pipelines)
+    bases = base_names if bases is None else list(bases)
+    for asked, known, what in ((pipelines, names, "pipeline"), (bases, base_names, "base")):
         if unknown := sorted(set(asked) - set(known)):
             raise ValueError(f"no time-to-quality {what} {', '.join(unknown)}: one of {', '.join(known)}")
     threads = len(os.sched_getaffinity(0)) if threads is None else choose_threads(threads)[0]
