@@ -88,18 +88,18 @@ def test_every_pipeline_runs_once_per_seed_and_counts_the_median(monkeypatch):
         "sb3_ddpg": {0: (300.0, 0.96), 1: (600.0, 0.90), 2: (900.0, 0.90)},  # median: never
         "sb3_ppo": {0: (400.0, 0.90), 1: (500.0, 0.90), 2: (450.0, 0.96)},  # median: never
     }
-    seen: dict[str, list] = {"ours": [], "sb3": []}
+    seen: list[tuple[str, int]] = []  # (pipeline, seed), in the order they ran
 
     def seed_of(overrides) -> int:
         (seed,) = (int(o.removeprefix("seed=")) for o in overrides if o.startswith("seed="))
         return seed
 
     def our_pipeline(frames, chunk, target, overrides):
-        seen["ours"].append(seed_of(overrides))
+        seen.append(("ours", seed_of(overrides)))
         return fake_runs(ours_seconds[seed_of(overrides)])
 
     def their_model(cfg, seed):  # what the real sb3() builds its model with; None: as if not installed
-        seen["sb3"].append(seed)
+        seen.append((cfg.agent.name, seed))
 
     sb3 = quality.sb3
 
@@ -110,12 +110,13 @@ def test_every_pipeline_runs_once_per_seed_and_counts_the_median(monkeypatch):
     in_this_process(monkeypatch)
     monkeypatch.setattr(quality, "BASES", {"_flat_base": quality.FLAT_BASE})
     monkeypatch.setattr(quality, "OURS", {"ours": []})
-    monkeypatch.setattr(quality, "SB3", {name: ("agent=ddpg", their_model) for name in quality.SB3})
+    monkeypatch.setattr(quality, "SB3", {name: (f"agent={name[4:]}", their_model) for name in quality.SB3})
     monkeypatch.setattr(quality, "ours", our_pipeline)
     monkeypatch.setattr(quality, "sb3", their_pipeline)
 
     record = quality.bench_quality(1600, 1600, 4800, seeds=(0, 1, 2))
-    assert seen == {"ours": [0, 1, 2], "sb3": [0, 1, 2, 0, 1, 2]}
+    # seed by seed, each seed's pipelines in turn, so that a drift of the machine's speed falls on all alike
+    assert seen == [(pipeline, seed) for seed in (0, 1, 2) for pipeline in ("ours", "ddpg", "ppo")]
     assert [r["seed"] for r in record["ours_flat_base"]["by_seed"]] == [0, 1, 2]
     assert record["ours_flat_base"]["seconds_to_target"] == 30.0
     assert record["sb3_ddpg_flat_base"]["seconds_to_target"] is None
@@ -220,7 +221,7 @@ def test_the_suite_runs_only_the_pipelines_and_bases_asked_for(monkeypatch):
     record = quality.bench_quality(
         1600, 1600, 4800, ("eager",), seeds=(0, 1), pipelines=["ours_ddpg", "sb3_ddpg"], bases=["flat_base"]
     )
-    assert ran == [("ours", True, True)] * 2 + [("sb3_ddpg", True)] * 2
+    assert ran == [("ours", True, True), ("sb3_ddpg", True)] * 2  # seed by seed
     runs = {key for key, value in record.items() if isinstance(value, dict) and "by_seed" in value}
     assert runs == {"ours_ddpg_flat_base_eager", "sb3_ddpg_flat_base"}
     assert record["sb3_flat_base_over_ours_ddpg_flat_base_eager"] == pytest.approx(12.0)

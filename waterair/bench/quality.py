@@ -24,7 +24,8 @@ Stable-Baselines3 does not):
   or ``sb3_frames`` (its wall time includes model construction, not the scoring).
 
 Every pipeline runs once per training seed (``seeds``: one run of one seed varies, and seeds vary more; see
-docs/benchmarks.md) and counts the median of their seconds (:func:`over_seeds`).
+docs/benchmarks.md), seed by seed, every pipeline of a seed in turn, and counts the median of their seconds
+(:func:`over_seeds`).
 
 Every greedy policy is scored with evaluation's own runner on the same 32 seas × 500 steps (evaluation seed
 12345, never a training seed), every pipeline at the same frames. The ratios are Stable-Baselines3's best median
@@ -204,16 +205,18 @@ def bench_quality(
     record = {"benchmark": "quality", "target": target, "chunk": chunk, "threads": threads, "seeds": list(seeds)}
     record |= {"scenario": "S1 point, 32 seas x 500 steps, seed 12345", "pipelines": pipelines, "bases": bases}
     chosen = {base: overrides for base, overrides in BASES.items() if base_name(base) in bases}
+    jobs: dict[str, tuple] = {}  # each pipeline's record key: (kind, leading arguments, overrides)
     for base, overrides in chosen.items():
         budget = flat_frames if base else frames
         for name, agent in ((name, agent) for name, agent in OURS.items() if name in pipelines):
             for mode in modes:
                 suffix, how = MODES[mode]
                 ours_on = [*agent, *overrides, f"threads={threads}", *how]
-                record[f"{name}{base}{suffix}"] = over_seeds(seeds, "ours", budget, chunk, target, ours_on)
+                jobs[f"{name}{base}{suffix}"] = ("ours", (budget, chunk, target), ours_on)
     for base, overrides in chosen.items():
         for name in (name for name in SB3 if name in pipelines):
-            record[f"{name}{base}"] = over_seeds(seeds, "sb3", name, sb3_frames, chunk, target, threads, overrides)
+            jobs[f"{name}{base}"] = ("sb3", (name, sb3_frames, chunk, target, threads), overrides)
+    record |= over_seeds(seeds, jobs)
     for base in chosen:
         theirs = [record[f"{name}{base}"] for name in SB3 if record.get(f"{name}{base}") is not None]
         if not theirs:
@@ -227,17 +230,24 @@ def bench_quality(
     return record
 
 
-def over_seeds(seeds: Sequence[int], kind: str, *args) -> dict | None:
-    """One pipeline, :func:`in_fresh_python` of ``kind`` and ``args`` (the overrides last) once per training seed
-    (``seed=N`` added to the overrides; None: the pipeline is not installed): each seed's result, the median over
-    the seeds of the seconds to the target (None when half or more of them never reached it) and a lower bound of
-    that median, each seed counting its seconds to the target or, where it never reached, at the end of its
-    budget."""
-    *leading, overrides = args
-    results = ((seed, in_fresh_python(kind, *leading, [*overrides, f"seed={seed}"])) for seed in seeds)
-    by_seed = [{"seed": seed, **result} for seed, result in results if result is not None]
-    if not by_seed:
-        return None
+def over_seeds(seeds: Sequence[int], jobs: dict[str, tuple]) -> dict[str, dict | None]:
+    """Every pipeline of ``jobs`` (its record key: the kind, :func:`ours` or :func:`sb3`, its leading arguments and
+    its overrides) once per training seed, :func:`in_fresh_python` with ``seed=N`` added to the overrides, seed by
+    seed: each seed's pipelines one after the other, so that a machine's drift over the run's minutes (docs/
+    benchmarks.md, "Machines") falls on ours and Stable-Baselines3's alike. Per pipeline (None: not installed):
+    each seed's result, the median over the seeds of the seconds to the target (None when half or more of them
+    never reached it) and a lower bound of that median, each seed counting its seconds to the target or, where it
+    never reached, at the end of its budget."""
+    by_key: dict[str, list[dict]] = {key: [] for key in jobs}
+    for seed in seeds:
+        for key, (kind, leading, overrides) in jobs.items():
+            result = in_fresh_python(kind, *leading, [*overrides, f"seed={seed}"])
+            if result is not None:
+                by_key[key].append({"seed": seed, **result})
+    return {key: _median_over_seeds(by_seed) if by_seed else None for key, by_seed in by_key.items()}
+
+
+def _median_over_seeds(by_seed: list[dict]) -> dict:
     median = statistics.median(math.inf if r["seconds_to_target"] is None else r["seconds_to_target"] for r in by_seed)
     last = (r["runs"][-1]["seconds"] if r["seconds_to_target"] is None else r["seconds_to_target"] for r in by_seed)
     at_least = statistics.median(last)
