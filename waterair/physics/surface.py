@@ -150,33 +150,34 @@ def _node_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor):
     return real, imaginary, torch.cos(angle[:, 1]), torch.sin(angle[:, 1])
 
 
-def _power_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor, rows: torch.Tensor, columns: torch.Tensor):
-    """:func:`_node_factors` written into ``rows`` (``[B, n, 2K]``, [real | imaginary]) and ``columns`` (``[B, n,
-    2K]``, [cos | sin]), the matrix product's operands, with three sines and cosines per harmonic instead of 1 + 2n.
+def _power_factors(inputs: Sequence[torch.Tensor], grid: torch.Tensor, rows: torch.Tensor, factors: torch.Tensor):
+    """:func:`_node_factors` written into ``rows`` (``[B, n, 2K]``, [real | imaginary]) and ``factors[:, 1]`` (``[B,
+    n, 2K]``, [cos | sin], the matrix product's first columns), with three sines and cosines per harmonic instead of
+    1 + 2n; ``factors[:, 0]`` holds the i-axis' [cos | sin] on the way.
 
     The grid is uniform, g_i = g_m + (i − m) h about its middle node m, so e^{−i g_i α} = e^{−i g_m α} e^{−i (i − m)
     h α}: the middle node's factors join the centre's phase, and the others are powers of e^{−i h α}
-    (:func:`_powers`), as for β. Eager, the lattice's sums at 64 links take about 20 % less time than with
-    :func:`_node_factors`; compiled on a CPU they are bound by writing the factors, not by their sines, and were
-    no faster (docs/benchmarks.md, "Lattice sums"). Returns the j-factors' cos and sin, views of ``columns``."""
+    (:func:`_powers`'s recurrences), as for β, each power written in its place for both axes at once and mirrored
+    to the nodes before the middle (cos(−d x) = cos(d x), sin(−d x) = −sin(d x)). Eager, the lattice's sums at 64
+    links take about 20 % less time than with :func:`_node_factors`; compiled on a CPU they are bound by writing
+    the factors, not by their sines, and were no faster (docs/benchmarks.md, "Lattice sums"). Returns the
+    j-factors' cos and sin, views of ``factors``."""
     amplitude = inputs[4]
     nodes, harmonics = grid.shape[0], amplitude.shape[-1]
-    middle = nodes // 2
+    middle = (nodes - 1) // 2  # as many nodes before it as after it, or one more after
     projected, psi = _projection_and_phase(inputs)
     psi = psi - grid[middle] * projected.sum(1)  # the middle node's phase
     c_re, c_im = (amplitude * torch.cos(psi)).unsqueeze(1), (amplitude * torch.sin(psi)).unsqueeze(1)  # at (m, m)
-    cos_d, sin_d = _powers(projected * ((grid[-1] - grid[0]) / (nodes - 1)), max(middle, nodes - 1 - middle))
-    sin_d += [-v for v in sin_d[:0:-1]]  # sin(−d x) at index −d
-    offsets = range(-middle, nodes - middle)
+    both = factors[:, :2]  # [B, 2 (i, j), n, 2K]
+    cos, sin = both[..., :harmonics], both[..., harmonics:]
+    _powers(projected * ((grid[-1] - grid[0]) / (nodes - 1)), cos[:, :, middle:], sin[:, :, middle:])
+    cos[:, :, :middle].copy_(cos[:, :, middle + 1 : 2 * middle + 1].flip(2))
+    torch.neg(sin[:, :, middle + 1 : 2 * middle + 1].flip(2), out=sin[:, :, :middle])
     real, imaginary = rows.split(harmonics, -1)
-    cos_b, sin_b = columns.split(harmonics, -1)
-    cos_a = torch.stack([cos_d[abs(d)][:, 0] for d in offsets], dim=1)  # cos((i − m) h α) [B, n, K]
-    sin_a = torch.stack([sin_d[d][:, 0] for d in offsets], dim=1)
+    cos_a, sin_a = cos[:, 0], sin[:, 0]
     torch.add(c_re * cos_a, c_im * sin_a, out=real)
     torch.sub(c_im * cos_a, c_re * sin_a, out=imaginary)
-    torch.stack([cos_d[abs(d)][:, 1] for d in offsets], dim=1, out=cos_b)
-    torch.stack([sin_d[d][:, 1] for d in offsets], dim=1, out=sin_b)
-    return cos_b, sin_b
+    return cos[:, 1], sin[:, 1]
 
 
 def _projection_and_phase(inputs: Sequence[torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
@@ -187,19 +188,24 @@ def _projection_and_phase(inputs: Sequence[torch.Tensor]) -> tuple[torch.Tensor,
     return projected, omega * t.unsqueeze(-1) + phase - kx * centre[:, :1] - ky * centre[:, 1:]
 
 
-def _powers(angle: torch.Tensor, highest: int) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
-    """cos(d x) and sin(d x) for d = 0 … ``highest`` from one cosine and sine of x = ``angle``: e^{i d x} squared
-    from e^{i d x / 2} where d is even (cos 2y = 1 − 2 sin² y, sin 2y = 2 sin y cos y), times e^{i x} where odd."""
-    cos, sin = [torch.ones_like(angle), torch.cos(angle)], [torch.zeros_like(angle), torch.sin(angle)]
-    for d in range(2, highest + 1):
+def _powers(angle: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor) -> None:
+    """cos(d x) and sin(d x) for d = 0 … D − 1 written into ``cos[:, :, d]`` and ``sin[:, :, d]`` (each ``[B, 2, D,
+    K]``) from one cosine and sine of x = ``angle`` ``[B, 2, K]``: e^{i d x} squared from e^{i d x / 2} where d is
+    even (cos 2y = 1 − 2 sin² y, sin 2y = 2 sin y cos y), times e^{i x} where odd."""
+    cos[:, :, 0].fill_(1.0)
+    sin[:, :, 0].fill_(0.0)
+    if cos.shape[2] > 1:
+        cos[:, :, 1].copy_(torch.cos(angle))  # computed whole, then placed: the same rounding as a tensor of its own
+        sin[:, :, 1].copy_(torch.sin(angle))
+    for d in range(2, cos.shape[2]):
         if d % 2 == 0:
-            half_cos, half_sin = cos[d // 2], sin[d // 2]
-            cos.append(1 - 2 * half_sin * half_sin)
-            sin.append(2 * half_sin * half_cos)
+            half_cos, half_sin = cos[:, :, d // 2], sin[:, :, d // 2]
+            torch.sub(1, 2 * half_sin * half_sin, out=cos[:, :, d])
+            torch.mul(2 * half_sin, half_cos, out=sin[:, :, d])
         else:
-            cos.append(cos[d - 1] * cos[1] - sin[d - 1] * sin[1])
-            sin.append(sin[d - 1] * cos[1] + cos[d - 1] * sin[1])
-    return cos[: highest + 1], sin[: highest + 1]
+            last_cos, last_sin, one_cos, one_sin = cos[:, :, d - 1], sin[:, :, d - 1], cos[:, :, 1], sin[:, :, 1]
+            torch.sub(last_cos * one_cos, last_sin * one_sin, out=cos[:, :, d])
+            torch.add(last_sin * one_cos, last_cos * one_sin, out=sin[:, :, d])
 
 
 def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int):
@@ -210,13 +216,14 @@ def _lattice_sums(inputs: Sequence[torch.Tensor], grid: torch.Tensor, order: int
     rows = kx.new_empty(batch, n, 2 * harmonics)  # the i-factors, [real | imaginary] over the harmonics
     # the j-factors e^{−i g_j β} as the columns that, times [re | im], give the real part (m_re cos + m_im sin)
     # and the imaginary part (m_im cos − m_re sin) of the product, each weighted per harmonic by its sum's factor:
-    # η = Re Σ a e^{iψ}; η_x, η_y = Im Σ (kx, ky) a e^{iψ}; η_xx, η_xy, η_yy = −Re Σ (kx², kx ky, ky²) a e^{iψ}
-    columns = kx.new_empty(batch, terms, n, 2 * harmonics)
-    cos_b, sin_b = _power_factors(inputs, grid, rows, columns[:, 0])
+    # η = Re Σ a e^{iψ}; η_x, η_y = Im Σ (kx, ky) a e^{iψ}; η_xx, η_xy, η_yy = −Re Σ (kx², kx ky, ky²) a e^{iψ};
+    # behind a slot for the i-axis' powers (:func:`_power_factors`)
+    factors = kx.new_empty(batch, 1 + terms, n, 2 * harmonics)
+    columns = factors[:, 1:]
+    cos_b, sin_b = _power_factors(inputs, grid, rows, factors)
     if order >= 1:
-        minus_sin = -sin_b
         for term, weight in ((1, kx), (2, ky)):
-            torch.mul(weight, minus_sin, out=columns[:, term, :, :harmonics])
+            torch.mul(-weight, sin_b, out=columns[:, term, :, :harmonics])  # (−w) s: exactly w (−s)
             torch.mul(weight, cos_b, out=columns[:, term, :, harmonics:])
     if order == 2:
         for term, weight in ((3, kx * kx), (4, kx * ky), (5, ky * ky)):
