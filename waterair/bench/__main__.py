@@ -44,7 +44,7 @@ from waterair.bench.env import ENV_HEADER, bench_channels, bench_env
 from waterair.bench.evaluate import bench_evaluate, evaluate_table
 from waterair.bench.montecarlo import MONTECARLO_HEADER, bench_montecarlo, montecarlo_table
 from waterair.bench.physics import bench_physics, physics_table
-from waterair.bench.quality import BASES, CHUNK, MODES, OURS, SB3, base_name, bench_quality, quality_table
+from waterair.bench.quality import CHUNK, MODES, bench_quality, known_names, quality_table
 from waterair.bench.sb3 import MISSING as SB3_MISSING
 from waterair.bench.sb3 import installed as sb3_installed
 from waterair.bench.summary import main as summary
@@ -121,11 +121,9 @@ def main(argv: list[str] | None = None) -> int:
         "--modes", nargs="+", choices=list(MODES), default=["compiled"], help="how our pipelines run: compiled, eager"
     )
     quality.add_argument("--seeds", nargs="+", type=int, default=[0], help="training seeds of every pipeline")
-    quality.add_argument(
-        "--pipelines", nargs="+", choices=[*OURS, *SB3], default=None, help="the pipelines to run (default: all)"
-    )
-    bases = [base_name(base) for base in BASES]
-    quality.add_argument("--bases", nargs="+", choices=bases, default=None, help="the bases to run on (default: both)")
+    pipelines, bases = known_names()
+    quality.add_argument("--pipelines", nargs="+", choices=pipelines, help="the pipelines to run (default: all)")
+    quality.add_argument("--bases", nargs="+", choices=bases, help="the bases to run on (default: both)")
     quality.add_argument(
         "--threads", type=_threads, default=None, help="torch threads of every pipeline, auto or N (default: every CPU)"
     )

@@ -92,6 +92,12 @@ def base_name(suffix: str) -> str:
     return suffix.removeprefix("_") or "default"
 
 
+def known_names() -> tuple[list[str], list[str]]:
+    """The names a suite may be asked to run: its pipelines' (:data:`OURS`, :data:`SB3`) and its bases'
+    (:func:`base_name`), for ``--pipelines`` and ``--bases``."""
+    return [*OURS, *SB3], [base_name(base) for base in BASES]
+
+
 def score(cfg, policy) -> float:
     """The greedy ``policy``'s ratio to the upper bound on :data:`SCENARIO`, scored eagerly whatever ``cfg``'s
     step (every pipeline the same way; the scoring is not timed)."""
@@ -195,7 +201,7 @@ def bench_quality(
     ours (:func:`over_seeds`): exact where an SB3 pipeline's median reached it, a lower bound (``..._at_least``)
     where none had by the end of its budget. ``pipelines`` (names of :data:`OURS` and :data:`SB3`) and ``bases``
     (``default``, ``flat_base``) choose some of them (default: all)."""
-    names, base_names = [*OURS, *SB3], [base_name(base) for base in BASES]
+    names, base_names = known_names()
     pipelines = names if pipelines is None else list(pipelines)
     bases = base_names if bases is None else list(bases)
     for asked, known, what in ((pipelines, names, "pipeline"), (bases, base_names, "base")):
