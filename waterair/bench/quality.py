@@ -211,16 +211,18 @@ def bench_quality(
     record = {"benchmark": "quality", "target": target, "chunk": chunk, "threads": threads, "seeds": list(seeds)}
     record |= {"scenario": "S1 point, 32 seas x 500 steps, seed 12345", "pipelines": pipelines, "bases": bases}
     chosen = {base: overrides for base, overrides in BASES.items() if base_name(base) in bases}
+    ours = {name: agent for name, agent in OURS.items() if name in pipelines}
+    sb3s = [name for name in SB3 if name in pipelines]
     jobs: dict[str, tuple] = {}  # each pipeline's record key: (kind, leading arguments, overrides)
     for base, overrides in chosen.items():
         budget = flat_frames if base else frames
-        for name, agent in ((name, agent) for name, agent in OURS.items() if name in pipelines):
+        for name, agent in ours.items():
             for mode in modes:
                 suffix, how = MODES[mode]
                 ours_on = [*agent, *overrides, f"threads={threads}", *how]
                 jobs[f"{name}{base}{suffix}"] = ("ours", (budget, chunk, target), ours_on)
     for base, overrides in chosen.items():
-        for name in (name for name in SB3 if name in pipelines):
+        for name in sb3s:
             jobs[f"{name}{base}"] = ("sb3", (name, sb3_frames, chunk, target, threads), overrides)
     record |= over_seeds(seeds, jobs)
     for base in chosen:
