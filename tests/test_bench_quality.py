@@ -5,7 +5,10 @@ The pipelines themselves run for minutes (``python -m waterair.bench quality``);
 shows what our time counts, and recorders stand in for the pipelines when the ratios are formed.
 """
 
+import gc
+import importlib.util
 import json
+import sys
 import time
 
 import pytest
@@ -36,6 +39,22 @@ def test_our_run_is_scored_at_each_checkpoint_and_ends_at_the_first_that_reaches
     # the loop up to the second checkpoint (environment, updates, about a second each batch) is counted; the
     # scorings and the closing evaluation (0.6 s each at least) are not
     assert 0.2 < first["seconds"] < second["seconds"] < wall - 1.8
+
+
+@pytest.mark.parametrize("kind, module", [("ours", "waterair.training.loop"), ("sb3", "stable_baselines3")])
+def test_a_pipelines_process_imports_what_it_runs_then_freezes_it_as_train_py_does(kind, module):
+    """Its Python starts with the collector off; entering imports the pipeline's modules, moves what is alive out
+    of the collector's walks and turns it on, so that the run's full collections walk only what the run makes."""
+    assert quality.CHILD.startswith("import gc; gc.disable();")
+    gc.disable()
+    try:
+        frozen = gc.get_freeze_count()
+        quality.enter_child(kind)
+        assert gc.isenabled() and gc.get_freeze_count() > frozen
+        # Stable-Baselines3 is the bench extra's (make bench), not the tests'; where it is installed, it is imported
+        assert module in sys.modules or importlib.util.find_spec(module) is None
+    finally:
+        gc.enable()
 
 
 def in_this_process(monkeypatch):

@@ -42,6 +42,7 @@ from torch import nn
 
 from waterair.bench.common import last_line_of_fresh_python
 from waterair.bench.sb3 import sb3_ddpg
+from waterair.core.process import imports_done
 from waterair.core.threads import choose_threads, torch_threads
 from waterair.training.algorithms.ddpg import DDPG
 from waterair.training.algorithms.off_policy import TRANSITION_KEYS
@@ -224,7 +225,8 @@ def bench_training(
 def train_run(frames: int, overrides: list[str]) -> dict:
     """``train()`` on the default configuration with ``overrides`` for ``frames`` frames, in a fresh process."""
     args = json.dumps({"frames": frames, "overrides": overrides})
-    child = "import sys; from waterair.bench.training import run_in_child; run_in_child(sys.argv[1])"
+    child = "import gc; gc.disable(); import sys; from waterair.bench.training import run_in_child; "
+    child += "run_in_child(sys.argv[1])"
     return json.loads(last_line_of_fresh_python(child, [args], f"the training run {overrides}"))
 
 
@@ -232,10 +234,12 @@ def run_in_child(args: str) -> None:
     """The child of :func:`train_run`: one run, then its timings as the last line of stdout (JSON).
 
     Collection and update seconds are the loop's own per-batch timings (``metrics.csv``); the first
-    batch holds the compiles, if any.
+    batch holds the compiles, if any. Its imports done, their objects are frozen, as train.py freezes its own
+    (:func:`~waterair.core.process.imports_done`; :func:`train_run` starts it with the collector off).
     """
     from waterair.training.loop import train
 
+    imports_done()
     request = json.loads(args)
     frames, overrides = request["frames"], request["overrides"]
     with tempfile.TemporaryDirectory() as run_dir:
