@@ -16,6 +16,7 @@ import torch
 from conftest import ONE_PATH, TINY
 
 from waterair.bench import quality
+from waterair.bench.common import COLLECTOR_OFF
 
 
 def test_our_run_is_scored_at_each_checkpoint_and_ends_at_the_first_that_reaches_without_the_scorings(monkeypatch):
@@ -45,7 +46,7 @@ def test_our_run_is_scored_at_each_checkpoint_and_ends_at_the_first_that_reaches
 def test_a_pipelines_process_imports_what_it_runs_then_freezes_it_as_train_py_does(kind, module):
     """Its Python starts with the collector off; entering imports the pipeline's modules, moves what is alive out
     of the collector's walks and turns it on, so that the run's full collections walk only what the run makes."""
-    assert quality.CHILD.startswith("import gc; gc.disable();")
+    assert quality.CHILD.startswith(COLLECTOR_OFF) and "gc.disable()" in COLLECTOR_OFF
     gc.disable()
     try:
         frozen = gc.get_freeze_count()

@@ -49,6 +49,11 @@ def seconds_in_fresh_python(code: str, args: list[str], cache: str, what: str) -
     return float(last_line_of_fresh_python(code, args, what, {"TORCHINDUCTOR_CACHE_DIR": cache}))
 
 
+COLLECTOR_OFF = "import gc; gc.disable(); "
+"""How the program of a child that runs as an entry point starts: Python's garbage collector off until it has imported
+what it runs and calls :func:`~waterair.core.process.imports_done`, as train.py does."""
+
+
 def last_line_of_fresh_python(code: str, args: list[str], what: str, environ: dict[str, str] | None = None) -> str:
     """Run ``code`` in a fresh Python with ``args`` as ``sys.argv[1:]`` (and ``environ`` over this process's
     environment); the last line it printed, or an error naming ``what`` with the end of its stderr."""

@@ -47,7 +47,7 @@ from pathlib import Path
 
 import torch
 
-from waterair.bench.common import last_line_of_fresh_python
+from waterair.bench.common import COLLECTOR_OFF, last_line_of_fresh_python
 from waterair.bench.sb3 import SB3Actor, sb3_ddpg, sb3_ppo
 from waterair.bench.training import compose_training
 from waterair.core.process import imports_done
@@ -165,11 +165,10 @@ def sb3(name: str, frames: int, chunk: int, target: float, threads: int, overrid
     return {"overrides": overrides, "runs": runs, "seconds_to_target": _first_reaching(runs, target)}
 
 
-CHILD = (
-    "import gc; gc.disable(); import json, sys; from waterair.bench import quality as q; "
-    "print(json.dumps(q.run_pipeline(sys.argv[1])))"
+CHILD = COLLECTOR_OFF + (
+    "import json, sys; from waterair.bench import quality as q; print(json.dumps(q.run_pipeline(sys.argv[1])))"
 )
-"""The child's program: the collector off until its imports are done, as in train.py (:func:`run_pipeline`)."""
+"""The child's program (its imports frozen by :func:`run_pipeline`)."""
 
 
 def in_fresh_python(kind: str, *args) -> dict | None:

@@ -40,7 +40,7 @@ import torch
 from hydra import compose, initialize_config_dir
 from torch import nn
 
-from waterair.bench.common import last_line_of_fresh_python
+from waterair.bench.common import COLLECTOR_OFF, last_line_of_fresh_python
 from waterair.bench.sb3 import sb3_ddpg
 from waterair.core.process import imports_done
 from waterair.core.threads import choose_threads, torch_threads
@@ -225,8 +225,7 @@ def bench_training(
 def train_run(frames: int, overrides: list[str]) -> dict:
     """``train()`` on the default configuration with ``overrides`` for ``frames`` frames, in a fresh process."""
     args = json.dumps({"frames": frames, "overrides": overrides})
-    child = "import gc; gc.disable(); import sys; from waterair.bench.training import run_in_child; "
-    child += "run_in_child(sys.argv[1])"
+    child = COLLECTOR_OFF + "import sys; from waterair.bench.training import run_in_child; run_in_child(sys.argv[1])"
     return json.loads(last_line_of_fresh_python(child, [args], f"the training run {overrides}"))
 
 
