@@ -193,8 +193,8 @@ def run_pipeline(request: str) -> dict | None:
 def enter_child(kind: str) -> None:
     """Import what the pipeline ``kind`` (``ours`` or ``sb3``) runs, then keep every object alive out of the garbage
     collector's walks and turn it on (:func:`~waterair.core.process.imports_done`), as train.py does after its
-    imports: its full collections then walk only what the run makes (0.16-0.19 s each, about one a run, without).
-    Stable-Baselines3's side gets the same, though its own scripts would not."""
+    imports: its full collections then walk only what the run makes (unfrozen, about one a run took 0.16-0.19 s on
+    either side). Stable-Baselines3's side gets the same, though its own scripts would not."""
     if kind == "ours":
         import waterair.evaluation.policies
         import waterair.training.loop  # noqa: F401
