@@ -35,7 +35,6 @@ Needs ``stable_baselines3`` for the SB3 rows.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import os
@@ -48,7 +47,7 @@ from pathlib import Path
 import torch
 
 from waterair.bench.common import COLLECTOR_OFF, last_line_of_fresh_python
-from waterair.bench.sb3 import SB3Actor, sb3_ddpg, sb3_ppo
+from waterair.bench.sb3 import SB3Actor, installed, sb3_ddpg, sb3_ppo
 from waterair.bench.training import compose_training
 from waterair.core.process import imports_done
 from waterair.core.threads import choose_threads, torch_threads
@@ -198,7 +197,7 @@ def enter_child(kind: str) -> None:
     if kind == "ours":
         import waterair.evaluation.policies
         import waterair.training.loop  # noqa: F401
-    elif importlib.util.find_spec("stable_baselines3") is not None:
+    elif installed():
         import stable_baselines3  # noqa: F401
     imports_done()
 
