@@ -13,6 +13,7 @@ import torch
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
+import waterair.training.config  # noqa: F401  (registers the config's resolvers, as train.py's imports do)
 from waterair.core.process import imports_done
 from waterair.envs.config import EnvConfig
 from waterair.physics.channel import LinkGeometry

@@ -73,6 +73,20 @@ def test_a_rejected_command_exits_non_zero_with_one_line_on_stderr(script, overr
     assert tree(ROOT / "outputs") == before
 
 
+@pytest.mark.parametrize(
+    ("argv", "line"),
+    [
+        (["env.wind=12", "env.wind_range=[4,20]"], "error: env.wind = 12 and env.wind_range = [4, 20] are both set; "),
+        (["env.wind=12", "env.sea.wind=8"], "error: env.wind = 12 and env.sea.wind = 8 disagree; env.wind sets env.se"),
+        (["-m", "env.offset=0.1,0.3", "env.offset_values=[0.2]"], "error: env.offset = 0.1 and env.offset_values = "),
+    ],
+)
+def test_an_operating_point_given_twice_is_one_line_and_writes_nothing(argv, line, tmp_path):
+    before = tree(ROOT / "outputs")
+    assert rejection("train.py", [*argv, f"hydra.run.dir={tmp_path}/run"]).startswith(line)
+    assert tree(ROOT / "outputs") == before and not any(tmp_path.iterdir())
+
+
 def test_a_sweep_is_checked_job_by_job_before_it_starts():
     assert jobs(["-m", "env.sea.wind=8,12", "agent=td3"]) == [
         ["env.sea.wind=8", "agent=td3"],
@@ -84,7 +98,7 @@ def test_a_sweep_is_checked_job_by_job_before_it_starts():
 @pytest.mark.parametrize(
     ("argv", "line"),
     [
-        (["-m", "env.wind=4,12"], "error: env.wind is env.sea.wind in this version (env.wind=4,12 → env.sea.wind=4,1"),
+        (["-m", "env.fetch=1e4,2e4"], "error: env.fetch is env.sea.fetch in this version (env.fetch=1e4,2e4 → env.sea"),
         (["+env.aperture_diameter=0.1"], "error: env.aperture_diameter is env.optics.aperture_diameter in this versi"),
         (["env.lattice_nodes=5"], "error: env.lattice_nodes is env.channel.nodes in this version"),
         (["env.channel=single_path"], "error: env.channel=single_path: the channel is a config group now; write en"),

@@ -10,7 +10,8 @@ import sys
 from collections import Counter
 
 import pytest
-from conftest import ROOT
+import torch
+from conftest import ROOT, compose_config
 from omegaconf import OmegaConf
 
 from waterair.core import validation
@@ -180,7 +181,7 @@ def test_compile_kernel_is_true_or_false_and_the_yamls_auto_is_refused_not_compi
 
 @pytest.mark.parametrize(
     ("key", "now"),
-    [("wind", "sea.wind"), ("offset_ratio", "geometry.offset_ratio"), ("aperture_diameter", "optics.aperture_diameter"),
+    [("fetch", "sea.fetch"), ("offset_ratio", "geometry.offset_ratio"), ("aperture_diameter", "optics.aperture_diameter"),
      ("spectrum", "sea.spectrum"), ("lattice_nodes", "channel.nodes"), ("montecarlo_points", "channel.points")],
 )  # fmt: skip
 def test_a_key_of_the_first_releases_is_an_error_naming_where_it_lives_now(key, now):
@@ -328,11 +329,13 @@ def test_each_default_is_stated_once_by_the_dataclasses_and_the_yaml_and_docs_re
     wrong = {key: value for key, value in documented.items() if not same_default(value, dataclass_default(key))}
     assert wrong == {}
     conf = ROOT / "conf" / "env"
-    yaml = OmegaConf.to_container(OmegaConf.load(conf / "default.yaml"))
+    group = OmegaConf.to_container(OmegaConf.load(conf / "default.yaml"))
+    decided = {"device": "${device}", "seed": "${seed}", "compile_kernel": "auto"}
+    assert {key: group.pop(key) for key in decided} == decided
+    # resolved where train.py's config holds the group: the operating point's keys fill their groups' keys
+    yaml = OmegaConf.to_container(OmegaConf.create({"env": group}).env, resolve=True)
     yaml["sea"] |= OmegaConf.to_container(OmegaConf.load(conf / "spectrum" / f"{EnvConfig().sea.spectrum}.yaml"))
     yaml["channel"] = OmegaConf.to_container(OmegaConf.load(conf / "channel" / f"{EnvConfig().channel.name}.yaml"))
-    decided = {"device": "${device}", "seed": "${seed}", "compile_kernel": "auto"}
-    assert {key: yaml.pop(key) for key in decided} == decided
     expected = {key: value for key, value in EnvConfig().to_mapping().items() if key not in decided}
     assert {key: plain(value) for key, value in yaml.items()} == {key: plain(v) for key, v in expected.items()}
 
@@ -345,3 +348,54 @@ def test_a_policy_reads_its_own_columns_frame_by_frame_out_of_a_wider_observatio
     assert own.columns_in(own) == list(range(own.observation_size))
     with pytest.raises(ValueError, match="lacks a part"):
         wide.columns_in(own)
+
+
+def test_the_operating_point_sets_its_groups_key_and_follows_a_replace():
+    config = EnvConfig(wind=8, offset=0.3, divergence=0.01, wind_direction=30, offset_azimuth=-45)
+    assert (config.sea.wind, config.sea.wind_direction_deg) == (8.0, 30.0)
+    assert (config.geometry.offset_ratio, config.geometry.offset_azimuth_deg, config.optics.divergence) == (
+        0.3, -45.0, 0.01)  # fmt: skip
+    assert EnvConfig.from_mapping(config.to_mapping()) == config
+    assert config.replace(dt=0.1).sea.wind == 8.0
+    moved = config.replace(wind=4)
+    assert (moved.wind, moved.sea.wind) == (4.0, 4.0)
+    # set another way, the quantity is no longer the operating point's (evaluation's scenarios do this)
+    swept = config.replace(wind_values=(4.0, 12.0), sea={"fetch": 1e4})
+    assert swept.wind is None and swept.sea.wind == 8.0 and swept.wind_values == (4.0, 12.0)
+    assert config.replace(sea={"wind": 10.0}).wind is None
+
+
+@pytest.mark.parametrize(
+    ("keys", "message"),
+    [
+        ({"wind": 12, "wind_range": (4, 20)}, "env.wind = 12 and env.wind_range = [4, 20] are both set"),
+        ({"offset": 0.2, "offset_values": (0.1,)}, "env.offset = 0.2 and env.offset_values = [0.1] are both set"),
+        ({"wind": 12, "sea": {"wind": 8}}, "env.wind = 12 and env.sea.wind = 8 disagree; env.wind sets env.sea.wind"),
+        ({"divergence": 0.01, "optics": Transceiver(divergence=0.02)}, "env.divergence = 0.01 and env.optics.diverg"),
+        ({"wind": 0}, "env.wind = 0 is out of range; allowed (0, 60] m/s"),
+        ({"offset_azimuth": 400}, "env.offset_azimuth = 400 is out of range; allowed [-360, 360] deg"),
+    ],
+)
+def test_an_operating_point_with_its_own_draws_or_another_group_value_is_refused(keys, message):
+    with pytest.raises(ValueError, match=f"^{re.escape(message)}"):
+        EnvConfig(**keys)
+
+
+def test_env_wind_trains_every_link_of_every_reset_at_that_wind(monkeypatch):
+    from waterair.envs.env import WaterAirEnv
+    from waterair.physics.surface import WaveSurface
+    from waterair.training.builders import env_config
+
+    cfg = compose_config("config", ["env.wind=12", "reward.a=5", "env.sea.n_dir=4"])
+    assert cfg.reward.a == 5 and cfg.env.wind_range is None and cfg.env.sea.wind == 12
+    drawn, sample = [], WaveSurface.sample.__func__
+
+    def recorded(cls, sea, batch_size, *args, wind=None, **kwargs):
+        drawn.append(torch.full((batch_size,), sea.wind) if wind is None else wind.float())
+        return sample(cls, sea, batch_size, *args, wind=wind, **kwargs)
+
+    monkeypatch.setattr(WaveSurface, "sample", classmethod(recorded))
+    env = WaterAirEnv(env_config(cfg, num_envs=6, max_steps=2, compile_kernel=False, seed=3))
+    env.rollout(5, break_when_any_done=False)  # resets, then every link again after steps 2 and 4
+    assert len(drawn) >= 3 and set(torch.cat(drawn).tolist()) == {12.0}
+    assert compose_config("config").env.wind_range == [4.0, 20.0]  # without env.wind, the default draws

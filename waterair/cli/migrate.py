@@ -28,7 +28,7 @@ from pathlib import Path
 from omegaconf import OmegaConf
 
 from waterair.core.files import atomic_write_text
-from waterair.envs.groups import RENAMED
+from waterair.envs.groups import FIXED, RENAMED
 from waterair.physics.channel import CHANNELS, SinglePathChannel
 from waterair.physics.sea import SPECTRA
 
@@ -44,7 +44,8 @@ def migrated_env(values: Mapping) -> dict:
     sea = out.get("sea")
     if "spectrum" not in out and not (isinstance(sea, Mapping) and "spectrum" in sea):
         out["spectrum"] = BEFORE_THE_OCEAN["spectrum"]
-    flat = {key: out.pop(key) for key in list(out) if key in RENAMED}
+    grouped = isinstance(channel, Mapping)  # this version's layout, where env.wind is the operating point's key
+    flat = {key: out.pop(key) for key in list(out) if key in RENAMED and not (grouped and key in FIXED)}
     for key, value in flat.items():
         group, name = RENAMED[key].split(".")
         if group != "channel":
@@ -52,7 +53,7 @@ def migrated_env(values: Mapping) -> dict:
     if isinstance(out.get("sea"), Mapping):
         own = {"spectrum", *(field.name for field in dataclasses.fields(SPECTRA[out["sea"]["spectrum"]]))}
         out["sea"] = {key: value for key, value in out["sea"].items() if key in own}
-    if isinstance(channel, Mapping):  # already a group
+    if grouped:
         out["channel"] = dict(channel)
     else:
         own = {field.name for field in dataclasses.fields(CHANNELS[channel])}

@@ -6,7 +6,7 @@ Hydra will (every job of a ``-m`` sweep), refuses keys the config does not have 
 runs the program's own validation. A sweep's launcher is checked too (:mod:`waterair.cli.launch`),
 and a search's keys and space by its sweeper.
 Any problem exits with status 1 and one line on stderr, before Hydra creates a run directory.
-Adding a whole config group with ``+group=option`` stays allowed. A key of earlier releases (``env.wind``,
+Adding a whole config group with ``+group=option`` stays allowed. A key of earlier releases (``env.fetch``,
 ``env.lattice_nodes``, ``env.channel=NAME``) is an error naming today's (:func:`check_renamed`).
 """
 
@@ -26,7 +26,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from waterair.cli.errors import CommandLineError
 from waterair.cli.launch import check_launcher, runs_elsewhere
-from waterair.envs.groups import RENAMED
+from waterair.envs.groups import FIXED, RENAMED
 from waterair.training.config import CONF_DIR
 
 PASS_THROUGH = {
@@ -76,14 +76,17 @@ OLD_KEY = re.compile(r"^[+~]*env\.(\w+)(?==|$)")
 
 
 def check_renamed(argv: Sequence[str]) -> None:
-    """Refuse a key of earlier releases with one line naming today's: ``env.wind=12`` (``env.sea.wind``),
+    """Refuse a key of earlier releases with one line naming today's: ``env.fetch=1e4`` (``env.sea.fetch``),
     ``env.lattice_nodes=5`` (``env.channel.nodes``), ``env.channel=single_path`` (the group
-    ``env/channel=single_path``). docs/environment.md, "Renamed keys"."""
+    ``env/channel=single_path``). ``env.wind`` and ``env.divergence`` are today's keys again (the operating point,
+    :data:`~waterair.envs.groups.FIXED`). docs/environment.md, "Renamed keys"."""
     for arg in argv:
         old = OLD_KEY.match(arg)
         if old is None:
             continue
         key, value = old.group(1), arg.partition("=")[2]
+        if key in FIXED:  # an old name that is today's key again: the operating point
+            continue
         if key == "channel":
             raise CommandLineError(f"{arg}: the channel is a config group now; write env/channel={value}")
         if key in RENAMED:

@@ -29,10 +29,13 @@ NOISES = ("gaussian", "ou")
 BUFFERS = ("memory", "memmap")
 NETWORKS = ("mlp",)
 
-# hydra.run.dir is ${run_dir_or:${resume},outputs/...}: a resumed run continues in its own folder.
-# (oc.select would not do: it keeps resume's explicit null.) Registered at import, before Hydra
-# composes the config.
-OmegaConf.register_new_resolver("run_dir_or", lambda run, default: default if run is None else run, replace=True)
+# The config's own resolvers, registered at import, before Hydra composes the config. "This or that" (oc.select
+# would not do: it keeps an explicit null): hydra.run.dir is ${or_else:${resume},outputs/...}, so that a resumed run
+# continues in its own folder, and a group's key of the operating point takes env.<name> where it is set
+# (env/sea/moderate.yaml: wind: ${or_else:${..wind},12.0}). The training's range of that quantity is off then
+# (conf/config.yaml: wind_range: ${unless_set:${.wind},[4.0,20.0]}); docs/environment.md, "The operating point".
+OmegaConf.register_new_resolver("or_else", lambda given, default: default if given is None else given, replace=True)
+OmegaConf.register_new_resolver("unless_set", lambda given, value: value if given is None else None, replace=True)
 # A Slurm job asks for one GPU when the run asks for cuda (hydra.launcher.gpus_per_node, docs/training.md).
 OmegaConf.register_new_resolver("gpus_for_device", lambda device: 1 if device == "cuda" else None, replace=True)
 
