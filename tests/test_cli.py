@@ -115,9 +115,21 @@ def test_todays_keys_and_unknown_ones_are_not_taken_for_old_ones():
     assert rejection("train.py", ["env.windy=3"]) == (
         "error: env.windy is not a config key (check the spelling; every key is in docs/training.md)"
     )
-    assert rejection("train.py", ["env.sea.gamma=2", "env/spectrum=elfouhaily"]).startswith(
-        "error: env.sea.gamma is not a config key"
+    assert rejection("train.py", ["env.sea.gamma=2", "env/spectrum=elfouhaily"]) == (
+        "error: env.sea.gamma is not a key of the chosen option; env/spectrum=jonswap has it (choose one, or leave "
+        "env.sea.gamma out)"
     )
+
+
+@pytest.mark.parametrize("reward", ["le", "pointing"])
+def test_a_reward_coefficient_is_a_key_of_every_reward_that_uses_it_and_one_line_under_another(reward):
+    for jobs_argv in (["reward.a=5", "reward.b=50", "reward.c=0.5"], ["-m", "reward.a=5,10", "agent.gamma=0,0.9"]):
+        preflight("config", [f"reward={reward}", *jobs_argv], training.check)  # returns: every job is valid
+    for other in ("snr", "linear", "log"):
+        assert rejection("train.py", [f"reward={other}", "reward.a=5"]) == (
+            "error: reward.a is not a key of the chosen option; reward=le, reward=pointing have it (choose one, or "
+            "leave reward.a out)"
+        )
 
 
 def test_hydra_messages_become_one_line():

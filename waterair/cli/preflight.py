@@ -198,6 +198,11 @@ def one_line(error: BaseException) -> str:
             f"{missing.group(1)}={{...}} names a key {missing.group(1)} does not have (check the spelling; keys "
             f"cannot be added; every key is in docs/training.md)"
         )
+    if missing and (owners := options_with(missing.group(1))):
+        return (
+            f"{missing.group(1)} is not a key of the chosen option; {', '.join(owners)} "
+            f"{'has' if len(owners) == 1 else 'have'} it (choose one, or leave {missing.group(1)} out)"
+        )
     if missing:
         return f"{missing.group(1)} is not a config key (check the spelling; every key is in docs/training.md)"
     option = re.search(r"Could not find '([^']+)/([^'/]+)'\s+Available options in '[^']+':\s+(.*)", text, re.S)
@@ -208,6 +213,21 @@ def one_line(error: BaseException) -> str:
             return f"{group}={name} needs the package {package}, not installed (.venv/bin/pip install {package})"
         return f"{group}={name} is not an option of {group}; choose one of {choices}"
     return " ".join(text.replace("\t", " ").split())
+
+
+def options_with(key: str) -> list[str]:
+    """The group options of conf/ that hold ``key`` (``reward.a``: ``reward=le``, ``reward=pointing``), at the package
+    each option's ``# @package`` line names (its group's path by default)."""
+    owners = []
+    for path in sorted(CONF_DIR.glob("*/**/*.yaml")):
+        group = path.parent.relative_to(CONF_DIR).as_posix()
+        header = re.match(r"# @package (\S+)", path.read_text())
+        package = header.group(1) if header else group.replace("/", ".")
+        keys = _keys(OmegaConf.load(path))
+        prefix = "" if package == "_global_" else f"{package}."
+        if any(f"{prefix}{own}" == key for own in keys):
+            owners.append(f"{group}={path.stem}")
+    return owners
 
 
 def _compose(config_name: str, overrides: Sequence[str]) -> DictConfig:
