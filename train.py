@@ -1,7 +1,7 @@
 """Train a beam-alignment agent: ``python train.py [group=option] [key=value ...]``.
 
-Examples: ``python train.py env.sea.wind=8 agent=td3``, ``python train.py resume=outputs/train/DATE/TIME``,
-``python train.py -m env.sea.wind=8,12 agent.gamma=0,0.2 hydra/launcher=joblib``. See docs/training.md.
+Examples: ``python train.py env.wind=12 reward.a=5``, ``python train.py resume=outputs/train/DATE/TIME``,
+``python train.py -m agent.gamma=0,0.9 reward.a=5,10 env.wind=4,12,20 hydra/launcher=joblib``. See docs/training.md.
 The whole command line is checked before Hydra creates the run directory.
 """
 
@@ -25,7 +25,8 @@ from waterair.core.process import imports_done
 def main(cfg: DictConfig) -> float:
     hydra_config = HydraConfig.get()
     in_sweep = hydra_config.mode == RunMode.MULTIRUN
-    return training.run(cfg, list(hydra_config.overrides.task), hydra_config.runtime.output_dir, in_sweep)
+    events = training.sweep_events_dir(hydra_config) if in_sweep else None  # each job's run named by its overrides
+    return training.run(cfg, list(hydra_config.overrides.task), hydra_config.runtime.output_dir, in_sweep, events)
 
 
 if __name__ == "__main__":

@@ -84,7 +84,8 @@ def test_the_summary_keeps_the_finished_jobs_and_marks_the_others_with_their_log
     assert rows[2]["log"] == "2/train.log" and rows[1]["agent/ratio_to_ub"] == "0.93"
     table = (sweep / "summary.md").read_text()
     assert table.startswith("Every job: `total_frames=800`")
-    assert "| 0 | `seed=0` | 800 | 12 | 0.910 |" in table and "| 1 | `seed=1` | 800 | 12 | 0.930 |" in table
+    assert "| job | seed | frames |" in table and rows[1]["seed"] == "1"  # a column per swept key
+    assert "| 0 | `0` | 800 | 12 | 0.910 |" in table and "| 1 | `1` | 800 | 12 | 0.930 |" in table
     assert "Best: job 1 (`seed=1`), 0.930." in table and "over 2 jobs: mean 0.920" in table
     assert "Did not finish (3 of 5 jobs):" in table
     assert "| 2 | `seed=2` | failed | RuntimeError: boom | 2/train.log |" in table
@@ -322,3 +323,49 @@ def test_the_search_space_is_hydras_sweep_syntax_and_every_other_override_is_pas
     assert trial_overrides(space, drawn) == [
         "agent.gamma=0.125", "actor.lr=0.001", "env/sea=rough", "collector.updates_per_frame=2", "eval.steps=20",
         "x=0.5", "seed=3", "actor.hidden=[32,32]"]  # fmt: skip
+
+
+def hparams_of(events: Path) -> dict:
+    """The hparams plugin's session values in the event files under ``events`` (name → number or string)."""
+    from tensorboard.backend.event_processing.event_file_loader import EventFileLoader
+    from tensorboard.plugins.hparams.plugin_data_pb2 import HParamsPluginData
+
+    found = {}
+    for path in events.glob("events.out.tfevents.*"):
+        for event in EventFileLoader(str(path)).Load():
+            for value in event.summary.value:
+                if value.tag == "_hparams_/session_start_info":
+                    start = HParamsPluginData.FromString(value.metadata.plugin_data.content).session_start_info
+                    found = {key: hp.WhichOneof("kind") and getattr(hp, hp.WhichOneof("kind")) for key, hp in
+                             start.hparams.items()}  # fmt: skip
+    return found
+
+
+@pytest.mark.slow
+def test_a_sweep_over_the_discount_and_the_wind_summarises_and_names_each_job_by_its_values(multirun, tmp_path):
+    spec = importlib.util.spec_from_file_location("train", ROOT / "train.py")
+    entry_point = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(entry_point)
+    small = [*TINY, *ONE_PATH, "env.num_envs=4", "total_frames=400", "eval.realisations=2", "eval.steps=10"]
+    sweep = tmp_path / "sweep"
+    multirun(ROOT / "conf", "config", entry_point.main,
+             ["agent.gamma=0,0.9", "env.wind=4,12", "reward.a=5", *small, f"hydra.sweep.dir={sweep}"], "train")  # fmt: skip
+    with (sweep / "summary.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert [(row["agent.gamma"], row["env.wind"], row["status"]) for row in rows] == [
+        ("0", "4", "finished"), ("0", "12", "finished"), ("0.9", "4", "finished"), ("0.9", "12", "finished")]  # fmt: skip
+    assert all(0 < float(row["agent/ratio_to_ub"]) <= 1.2 for row in rows)
+    table = (sweep / "summary.md").read_text()
+    assert "| job | agent.gamma | env.wind | frames |" in table and "| 3 | `0.9` | `12` | 400 |" in table
+    for row in rows:
+        gamma, wind = row["agent.gamma"], row["env.wind"]
+        saved = OmegaConf.load(sweep / row["job"] / "config.yaml")
+        assert saved.env.sea.wind == float(wind) and saved.env.wind_range is None  # it trained at its wind
+        # each job's run is named by its overrides, and its hparams row holds its values and its closing ratio
+        run = sweep / "tensorboard" / f"agent.gamma={gamma},env.wind={wind}"
+        assert saved.logger.dir == str(run)
+        values = hparams_of(run)
+        assert (values["agent.gamma"], values["env.wind"], values["reward.a"]) == (float(gamma), float(wind), 5.0)
+        assert values["env.sea.wind"] == float(wind) and values["agent.name"] == "ppo"
+    assert sorted(path.name for path in (sweep / "tensorboard").iterdir()) == [
+        "agent.gamma=0,env.wind=12", "agent.gamma=0,env.wind=4", "agent.gamma=0.9,env.wind=12", "agent.gamma=0.9,env.wind=4"]  # fmt: skip

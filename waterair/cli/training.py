@@ -8,14 +8,14 @@ import math
 import time
 from pathlib import Path
 
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from waterair.cli.console import quiet_dependencies
 from waterair.core.files import atomic_write_text
 from waterair.envs.controllers import CONTROLLERS
 from waterair.training import train, validate
 from waterair.training.resume import plan_resume
-from waterair.training.sweep import ERROR_FILE, JOB_LOG
+from waterair.training.sweep import ERROR_FILE, EVENTS, JOB_LOG, swept_at
 
 log = logging.getLogger("waterair.train")
 
@@ -28,14 +28,23 @@ def check(cfg: DictConfig, overrides: list[str]) -> None:
         validate(cfg)
 
 
-def run(cfg: DictConfig, overrides: list[str], output_dir: str | Path, in_sweep: bool = False) -> float:
+def run(
+    cfg: DictConfig,
+    overrides: list[str],
+    output_dir: str | Path,
+    in_sweep: bool = False,
+    events_dir: str | Path | None = None,
+) -> float:
     """Train (or resume) and log the closing summary; return the greedy policy's ratio to the upper bound.
 
     The ratio is what a search (``hydra/sweeper=optuna``) maximises. A job of a sweep (``in_sweep``)
     that raises logs its traceback into its own log and leaves its error, one line, in
-    :data:`~waterair.training.sweep.ERROR_FILE` for the sweep's summary; the sweep goes on.
+    :data:`~waterair.training.sweep.ERROR_FILE` for the sweep's summary; the sweep goes on. ``events_dir``
+    (:func:`sweep_events_dir` for a sweep's job) is where the TensorBoard events go when ``logger.dir`` is null.
     """
     quiet_dependencies()
+    if events_dir is not None and not cfg.resume and cfg.logger.get("dir") is None:
+        cfg = OmegaConf.merge(cfg, {"logger": {"dir": str(events_dir)}})  # config.yaml keeps it: resume finds it
     try:
         return _run(cfg, overrides, Path(output_dir))
     except Exception as error:
@@ -46,6 +55,16 @@ def run(cfg: DictConfig, overrides: list[str], output_dir: str | Path, in_sweep:
         logging.getLogger("waterair.traceback").exception("The job failed")
         atomic_write_text(Path(output_dir) / ERROR_FILE, message + "\n")
         raise
+
+
+def sweep_events_dir(hydra_config: DictConfig) -> Path:
+    """Where a sweep's job writes its TensorBoard events: ``SWEEP/tensorboard/NAME``, NAME its values of the swept
+    keys (``agent.gamma=0.9,env.wind=12,reward.a=5``, sorted; ``job-N`` where nothing is swept), so that
+    ``tensorboard --logdir SWEEP/tensorboard`` names each run by what it varied."""
+    root = Path(hydra_config.sweep.dir).absolute()
+    swept = set(swept_at(root))
+    own = sorted(o for o in hydra_config.overrides.task if o.lstrip("+~").partition("=")[0] in swept)
+    return root / EVENTS / (",".join(own) or f"job-{hydra_config.job.num}")
 
 
 def _run(cfg: DictConfig, overrides: list[str], run_dir: Path) -> float:
@@ -59,7 +78,7 @@ def _run(cfg: DictConfig, overrides: list[str], run_dir: Path) -> float:
             )
             return _saved_metrics(plan.run_dir).get("agent/ratio_to_ub", math.nan)
         cfg, run_dir = plan.config, plan.run_dir
-    metrics = train(cfg, run_dir, progress=log.info)
+    metrics = train(cfg, run_dir, progress=log.info, overrides=overrides)
     log.info(summary(cfg, run_dir, metrics, time.perf_counter() - clock))
     return metrics["agent/ratio_to_ub"]
 
@@ -82,7 +101,7 @@ def summary(cfg: DictConfig, run_dir: Path, metrics: dict[str, float], seconds: 
             f"Its link ({_link_name(cfg)}): outage {metrics['agent/outage']:.2%} of the steps, mean BER "
             f"{metrics['agent/ber']:.2g}, mean rate at the FEC limit {metrics['agent/rate'] / 1e6:.3g} Mbit/s "
             f"(the upper bound's outage {metrics['upper_bound/outage']:.2%})",
-            f"TensorBoard: .venv/bin/tensorboard --logdir {run_dir / 'tensorboard'}",
+            f"TensorBoard: .venv/bin/tensorboard --logdir {cfg.logger.get('dir') or run_dir / 'tensorboard'}",
             f"Full evaluation: .venv/bin/python evaluate.py run={run_dir}",
         ]
     )

@@ -70,6 +70,8 @@ def validate(cfg: DictConfig) -> None:
     _check_noise(cfg.noise)
     _check_collector(cfg)
     check_choice("logger.name", cfg.logger.name, ("tensorboard",))
+    if cfg.logger.get("dir") is not None and not isinstance(cfg.logger.dir, str):  # a run saved before the key: none
+        raise ValueError(f"logger.dir = {cfg.logger.dir!r} must be a folder's path, or null")
     check_int("checkpoint.every_frames", cfg.checkpoint.every_frames, 1)
     check_int("eval.realisations", cfg.eval.realisations, 1)
     check_int("eval.steps", cfg.eval.steps, 1, cfg.env.max_steps)

@@ -8,11 +8,11 @@ builds the shared pieces from their config groups and the algorithm that ``agent
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import torch
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, ListConfig, OmegaConf
 from tensordict.nn.distributions.continuous import AddStateIndependentNormalScale
 from tqdm import tqdm
 
@@ -22,6 +22,7 @@ from waterair.core.files import atomic_write_json, atomic_write_text
 from waterair.core.threads import AUTO as AUTO_THREADS
 from waterair.core.threads import choose_threads, torch_threads
 from waterair.envs.controllers import controller_for
+from waterair.envs.groups import FIXED
 from waterair.evaluation.compiling import compiled_group
 from waterair.evaluation.groups import reading
 from waterair.evaluation.metrics import FADE_FRACTION, METRICS
@@ -32,7 +33,7 @@ from waterair.training.algorithms import create
 from waterair.training.builders import env_config, make_actor, make_buffer, make_collector, make_env, make_link
 from waterair.training.checkpoint import CHECKPOINT, Learner, Progress, load_checkpoint, save_checkpoint
 from waterair.training.compiling import compile_plan
-from waterair.training.config import validate
+from waterair.training.config import CONF_DIR, validate
 from waterair.training.run_log import RunLog
 
 FINAL_POLICIES = {"straight_facing": "straight_facing", "flat_snell": "flat_snell"}
@@ -45,6 +46,7 @@ def train(
     run_dir: Path,
     progress: Callable[[str], None] = print,
     on_checkpoint: Callable[[int], bool | None] | None = None,
+    overrides: Sequence[str] = (),
 ) -> dict[str, float]:
     """Train from ``cfg`` into ``run_dir`` (resuming from its checkpoint if ``cfg.resume``); return final metrics.
 
@@ -52,13 +54,14 @@ def train(
     closing evaluation starts and ends. ``on_checkpoint``, when given, is called with the frames done each time
     a checkpoint has been written (``run_dir/checkpoints/last.pt``); a true return ends the training there (the
     closing evaluation still runs): early stopping. The run uses ``threads`` torch threads
-    (:func:`waterair.core.threads.choose_threads`); the caller's count is restored afterwards.
+    (:func:`waterair.core.threads.choose_threads`); the caller's count is restored afterwards. The keys of the
+    command line's ``overrides`` join the hyperparameters TensorBoard's hparams table shows (:func:`hyperparameters`).
     """
     validate(cfg)
     threads, why = choose_threads(cfg.get("threads", AUTO_THREADS))
     progress(f"Running on {threads} torch thread{'s' if threads > 1 else ''} ({why})")
     with torch_threads(threads):
-        return _train(cfg, Path(run_dir), progress, on_checkpoint)
+        return _train(cfg, Path(run_dir), progress, on_checkpoint, overrides)
 
 
 def _train(
@@ -66,6 +69,7 @@ def _train(
     run_dir: Path,
     progress: Callable[[str], None],
     on_checkpoint: Callable[[int], bool | None] | None,
+    overrides: Sequence[str],
 ) -> dict[str, float]:
     resumed = bool(cfg.resume) and (run_dir / CHECKPOINT).exists()
     device = resolve_device(cfg.device)
@@ -109,7 +113,7 @@ def _train(
     collector = make_collector(cfg, env, exploration, counters.frames)
     update = algorithm.make_update(loss, target_update, optim_actor, optim_critic)
     learn = algorithm.make_learn(loss, update, buffer, noise)
-    log = RunLog(run_dir, resume_frames=counters.frames if resumed else None)
+    log = RunLog(run_dir, resume_frames=counters.frames if resumed else None, events_dir=cfg.logger.get("dir"))
     if not resumed:
         log.text("config", "```\n" + OmegaConf.to_yaml(cfg, resolve=True) + "\n```")
 
@@ -152,8 +156,10 @@ def _train(
     metrics.update(final_evaluation(cfg, learner.policy(), evaluation_compiles == "auto"))
     progress(f"Evaluated in {time.perf_counter() - clock:.0f} s")
     # The evaluation goes to TensorBoard and final_metrics.json; the CSV keeps one row per batch.
-    log.scalars(counters.frames, {f"eval/{k}": v for k, v in metrics.items() if "/" in k}, csv_row=False)
-    log.hparams(_hparams(cfg), {f"hparam/{k}": v for k, v in metrics.items() if k.startswith("agent/")})
+    evaluated = {f"eval/{k}": v for k, v in metrics.items() if "/" in k}
+    log.scalars(counters.frames, evaluated, csv_row=False)
+    closing = [tag for tag in evaluated if tag.startswith("eval/agent/") or tag.endswith("/ratio_to_ub")]
+    log.hparams(counters.frames, hyperparameters(cfg, overrides), closing)
     log.close()
     atomic_write_json(run_dir / "final_metrics.json", metrics)
     return metrics
@@ -231,12 +237,33 @@ def _noise_scale(noise) -> float:
     return float("nan")
 
 
-def _hparams(cfg: DictConfig) -> dict:
-    flat = {}
-    for group in ("agent", "reward", "noise"):
-        for key, value in OmegaConf.to_container(cfg[group], resolve=True).items():
-            if isinstance(value, int | float | str | bool):
-                flat[f"{group}.{key}"] = value
-    flat["env.sea.wind"] = cfg.env.sea.wind
-    flat["env.geometry.offset_ratio"] = cfg.env.geometry.offset_ratio
-    return flat
+HPARAM_KEYS = ("seed", "total_frames", "actor.lr", "critic.lr", *(f"env.{name}" for name in FIXED))
+"""Keys TensorBoard's hparams table shows for every run, beside the agent, reward and noise groups' and each key
+of the command line (a resumed run's command line is ``resume=...``: these and the groups' keys are what it shows)."""
+
+
+def hyperparameters(cfg: DictConfig, overrides: Sequence[str] = ()) -> dict[str, int | float | str | bool]:
+    """The run's hyperparameters for TensorBoard's hparams table: the agent, reward and noise groups' keys,
+    :data:`HPARAM_KEYS`, the sea's wind and the offset, and the keys of ``overrides`` (``agent.gamma=0.9`` as
+    ``agent.gamma``, a group choice ``env/sensor=ideal`` as ``env/sensor``) with their values in ``cfg``. Keys whose
+    value is null are left out (the table takes numbers, strings and booleans); a list is shown as its text."""
+    keys = [f"{group}.{key}" for group in ("agent", "reward", "noise") for key in cfg[group]]
+    keys += [*HPARAM_KEYS, "env.sea.wind", "env.geometry.offset_ratio"]
+    found: dict[str, int | float | str | bool] = {}
+    for override in overrides:
+        key, _, value = override.lstrip("+~").partition("=")
+        if key.split(".")[0].split("/")[0] in ("hydra", "resume"):
+            continue
+        if (CONF_DIR / key).is_dir():  # a group's option (agent=td3, env/sensor=ideal), by its name
+            found[key] = value
+        elif key not in keys:
+            keys.append(key)
+    for key in keys:
+        value = OmegaConf.select(cfg, key)
+        if isinstance(value, DictConfig | ListConfig):
+            value = OmegaConf.to_container(value, resolve=True)
+        if isinstance(value, list | tuple):
+            value = str(value)
+        if isinstance(value, int | float | str | bool):
+            found.setdefault(key, value)
+    return found

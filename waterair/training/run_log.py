@@ -3,7 +3,8 @@
 Tags are namespaced (``train/``, ``loss/``, ``time/``, ``eval/``); the step is the number of
 environment frames, so a resumed run continues the same curves. On resume, TensorBoard events
 and CSV rows written after the checkpoint are discarded (``purge_step``), so nothing is counted
-twice.
+twice. The run's hyperparameters go into the same events (TensorBoard's hparams table), so that the table's
+row of a run is the run whose curves TensorBoard shows, under its name.
 """
 
 from __future__ import annotations
@@ -12,19 +13,21 @@ import csv
 from pathlib import Path
 
 from torch.utils.tensorboard import SummaryWriter
+from torch.utils.tensorboard.summary import hparams
 
 from waterair.core.files import atomic_write_csv
 
 
 class RunLog:
-    """TensorBoard + CSV logger writing under ``run_dir``."""
+    """TensorBoard + CSV logger: the CSV in ``run_dir``, the events in ``events_dir`` (``run_dir/tensorboard``)."""
 
-    def __init__(self, run_dir: Path, resume_frames: int | None = None):
+    def __init__(self, run_dir: Path, resume_frames: int | None = None, events_dir: Path | None = None):
         self.run_dir = Path(run_dir)
         self.csv_path = self.run_dir / "metrics.csv"
+        self.events_dir = Path(events_dir) if events_dir is not None else self.run_dir / "tensorboard"
         # purge_step drops events at or after it; the checkpoint's own step is kept.
         purge = None if resume_frames is None else resume_frames + 1
-        self.writer = SummaryWriter(str(self.run_dir / "tensorboard"), purge_step=purge)
+        self.writer = SummaryWriter(str(self.events_dir), purge_step=purge)
         self._rows: list[dict] = []
         if resume_frames is not None and self.csv_path.exists():
             with self.csv_path.open(newline="") as handle:
@@ -41,8 +44,11 @@ class RunLog:
             self._rows.append({"frames": frames, **values})
             self._write_csv()
 
-    def hparams(self, params: dict, metrics: dict[str, float]) -> None:
-        self.writer.add_hparams(params, metrics, run_name="hparams")
+    def hparams(self, frames: int, params: dict, metric_tags: list[str]) -> None:
+        """The hparams table's row of this run: ``params`` (name → number, string or bool) beside the scalars
+        ``metric_tags`` that this run logs (into these events, not a run of their own as ``add_hparams`` writes)."""
+        for summary in hparams(params, dict.fromkeys(metric_tags, 0.0)):  # the plugin reads the metrics' scalars
+            self.writer.file_writer.add_summary(summary, frames)
 
     def close(self) -> None:
         self.writer.flush()

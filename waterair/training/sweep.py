@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
@@ -40,6 +41,9 @@ LAUNCH_FILE = "job.json"
 JOB_LOG = "train.log"
 """The log every job writes into its folder (conf/hydra/job_logging/waterair.yaml)."""
 FINISHED = "finished"
+EVENTS = "tensorboard"
+"""The folder at a sweep's root holding each job's TensorBoard run, named by its overrides
+(:func:`waterair.cli.training.sweep_events_dir`)."""
 
 
 @dataclass(frozen=True)
@@ -87,9 +91,10 @@ def summarise(root: Path) -> list[Job]:
     jobs = read_jobs(root)
     if not jobs:
         return jobs
+    keys = swept_keys(jobs)
     rows = [
-        {"job": job.number, "overrides": " ".join(job.overrides), "status": job.status,
-         "log": _relative(job.log, root), **job.metrics}
+        {"job": job.number, "overrides": " ".join(job.overrides), **{key: swept_value(job, key) for key in keys},
+         "status": job.status, "log": _relative(job.log, root), **job.metrics}
         for job in jobs
     ]  # fmt: skip
     atomic_write_csv(root / "summary.csv", list(dict.fromkeys(key for row in rows for key in row)), rows)
@@ -135,7 +140,9 @@ def report(root: Path, jobs: list[Job]) -> tuple[str, str | None]:
     if not jobs:
         return f"No job folders under {root}: nothing to summarise", f"{root} holds no jobs (numbered folders)"
     if finished == len(jobs):
-        return f"Summary of {len(jobs)} jobs: {where}", None
+        events = root / EVENTS
+        watch = f"TensorBoard, a run per job: .venv/bin/tensorboard --logdir {events}\n" if events.is_dir() else ""
+        return f"{watch}Summary of {len(jobs)} jobs: {where}", None
     shown = varying(jobs)
     missing = [
         f"job {job.number} ({shown[job.number] or 'no overrides'}) {job.status}: {job.detail} (log: {job.log or '–'})"
@@ -150,20 +157,22 @@ def summary_table(jobs: list[Job], root: Path) -> str:
     """Markdown: per finished job, the greedy agent's, the classical controller's, flat-sea Snell's and
     straight facing's ratio to UB (the closing evaluation's, on the same seas at the job's own wind and
     offset), the agent's spread and best job; then the jobs that did not finish."""
-    rows, shown = [job for job in jobs if job.finished], varying(jobs)
+    rows, shown, keys = [job for job in jobs if job.finished], varying(jobs), swept_keys(jobs)
     classical = [name for name in CONTROLLERS if any(f"{name}/ratio_to_ub" in job.metrics for job in rows)]
     common = [override for override in jobs[0].overrides if all(override in job.overrides for job in jobs)]
     lines = [f"Every job: `{' '.join(common)}`", ""] if common and len(jobs) > 1 else []
+    columns = keys or ["overrides"]  # a value per swept key; one job's overrides whole
     lines += [
-        "| job | overrides | frames | training (s) | agent ratio to UB | "
+        "| job | " + "".join(f"{key} | " for key in columns) + "frames | training (s) | agent ratio to UB | "
         + "".join(f"{name} | " for name in classical)
         + "flat-Snell | straight facing |",
-        "|---" * (7 + len(classical)) + "|",
-    ]
+        "|---" * (6 + len(columns) + len(classical)) + "|",
+    ]  # fmt: skip
     for job in rows:
         seconds, references = job.metrics.get("train_seconds"), "".join(_ratio(job, name) + " | " for name in classical)
+        values = [swept_value(job, key) for key in keys] or [shown[job.number]]
         lines.append(
-            f"| {job.number} | `{shown[job.number]}` | {job.metrics['frames']} | "
+            f"| {job.number} | " + "".join(f"`{value}` | " for value in values) + f"{job.metrics['frames']} | "
             f"{'–' if seconds is None else f'{seconds:.0f}'} | {job.metrics['agent/ratio_to_ub']:.3f} | {references}"
             f"{_ratio(job, 'flat_snell')} | {_ratio(job, 'straight_facing')} |"
         )
@@ -186,6 +195,33 @@ def summary_table(jobs: list[Job], root: Path) -> str:
             where = _relative(job.log, root) or "–"
             lines.append(f"| {job.number} | `{shown[job.number]}` | {job.status} | {job.detail} | {where} |")
     return "\n".join(lines) + "\n"
+
+
+def swept_at(root: Path) -> list[str]:
+    """The keys the sweep at ``root`` sweeps (``agent.gamma`` of ``agent.gamma=0,0.9``; a search's too), as its
+    ``multirun.yaml`` (written by the sweeper before the first job) gives them; none where it is missing."""
+    path = root / "multirun.yaml"
+    if not path.is_file():
+        return []
+    hydra = OmegaConf.load(path).hydra
+    params = hydra.sweeper.get("params") or {}
+    given = [*(f"{key}={value}" for key, value in params.items()), *hydra.overrides.task]
+    parsed = OverridesParser.create().parse_overrides(given)
+    return list(dict.fromkeys(override.get_key_element().lstrip("+~") for override in parsed if override.is_sweep_override()))
+
+
+def swept_keys(jobs: list[Job]) -> list[str]:
+    """The keys whose value is not the same in every job (a sweep's axes), in the order the overrides give them;
+    none for a sweep of one job."""
+    if len(jobs) < 2:
+        return []
+    keys = list(dict.fromkeys(override.partition("=")[0] for job in jobs for override in job.overrides))
+    return [key for key in keys if len({swept_value(job, key) for job in jobs}) > 1]
+
+
+def swept_value(job: Job, key: str) -> str:
+    """The value ``job``'s overrides give ``key`` (``–`` where they give none)."""
+    return next((o.partition("=")[2] for o in job.overrides if o.partition("=")[0] == key), "–")
 
 
 def varying(jobs: list[Job]) -> dict[int, str]:
