@@ -240,3 +240,41 @@ def test_jobs_sbatch_refuses_after_the_checks_are_one_line_and_leave_no_sweep_fo
     assert done.returncode == 1, done.stderr[-3000:]
     assert done.stderr.strip().splitlines() == [f"error: the scheduler refused the jobs: {refusal}"]
     assert not sweep.exists()
+
+
+def documented_commands() -> list[tuple[str, list[str]]]:
+    """Each ``train.py``/``evaluate.py`` line of the README's and docs/training.md's code blocks: (script, its
+    arguments), the comment after ``#`` dropped."""
+    import shlex
+
+    found = []
+    for path in (ROOT / "README.md", ROOT / "docs" / "training.md"):
+        blocks = path.read_text().replace("\\\n", " ").split("```")[1::2]  # the code blocks, continued lines joined
+        for line in (line for block in blocks for line in block.splitlines() if ".py " in line):
+            words = shlex.split(line, comments=True)
+            script = next((word for word in words if word in ("train.py", "evaluate.py")), None)
+            if script is not None and (script, words[words.index(script) + 1 :]) not in found:
+                found.append((script, words[words.index(script) + 1 :]))
+    return found
+
+
+COMMANDS = documented_commands()
+
+
+@pytest.mark.parametrize(("script", "argv"), COMMANDS, ids=[" ".join([s, *a]) for s, a in COMMANDS])
+def test_every_documented_command_line_passes_the_checks_as_printed(script, argv):
+    """Every key and value of the documented lines, checked as the script checks them before it runs. A run
+    directory written DATE/TIME names no real run (resume and run= are tested on runs of their own), and a Slurm
+    launcher needs a cluster (make slurm-check): those arguments are left out, the rest checked as printed."""
+    from waterair.cli import evaluation
+
+    left_out = ("DATE/TIME", "submitit_slurm", "hydra.launcher.")
+    kept = [arg for arg in argv if not any(part in arg for part in left_out)]
+    check = {"train.py": training.check, "evaluate.py": evaluation.check}[script]
+    preflight({"train.py": "config", "evaluate.py": "evaluate"}[script], kept, check)  # returns: it would run
+
+
+def test_the_documented_commands_include_the_ones_the_project_is_used_by():
+    lines = {" ".join([script, *argv]) for script, argv in COMMANDS}
+    assert "train.py env.wind=12 reward.a=5" in lines
+    assert "train.py -m agent.gamma=0,0.9 reward.a=5,10 env.wind=4,12,20 hydra/launcher=joblib" in lines

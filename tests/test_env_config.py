@@ -181,8 +181,9 @@ def test_compile_kernel_is_true_or_false_and_the_yamls_auto_is_refused_not_compi
 
 @pytest.mark.parametrize(
     ("key", "now"),
-    [("fetch", "sea.fetch"), ("offset_ratio", "geometry.offset_ratio"), ("aperture_diameter", "optics.aperture_diameter"),
-     ("spectrum", "sea.spectrum"), ("lattice_nodes", "channel.nodes"), ("montecarlo_points", "channel.points")],
+    [("fetch", "sea.fetch"), ("offset_ratio", "geometry.offset_ratio"),
+     ("aperture_diameter", "optics.aperture_diameter"), ("spectrum", "sea.spectrum"),
+     ("lattice_nodes", "channel.nodes"), ("montecarlo_points", "channel.points")],
 )  # fmt: skip
 def test_a_key_of_the_first_releases_is_an_error_naming_where_it_lives_now(key, now):
     message = rf"^env\.{key} is env\.{re.escape(now)} in this version \(python -m waterair\.cli\.migrate RUN"

@@ -348,12 +348,16 @@ def test_a_sweep_over_the_discount_and_the_wind_summarises_and_names_each_job_by
     spec.loader.exec_module(entry_point)
     small = [*TINY, *ONE_PATH, "env.num_envs=4", "total_frames=400", "eval.realisations=2", "eval.steps=10"]
     sweep = tmp_path / "sweep"
-    multirun(ROOT / "conf", "config", entry_point.main,
-             ["agent.gamma=0,0.9", "env.wind=4,12", "reward.a=5", *small, f"hydra.sweep.dir={sweep}"], "train")  # fmt: skip
+    swept = ["agent.gamma=0,0.9", "env.wind=4,12", "reward.a=5"]
+    multirun(ROOT / "conf", "config", entry_point.main, [*swept, *small, f"hydra.sweep.dir={sweep}"], "train")
     with (sweep / "summary.csv").open() as handle:
         rows = list(csv.DictReader(handle))
     assert [(row["agent.gamma"], row["env.wind"], row["status"]) for row in rows] == [
-        ("0", "4", "finished"), ("0", "12", "finished"), ("0.9", "4", "finished"), ("0.9", "12", "finished")]  # fmt: skip
+        ("0", "4", "finished"),
+        ("0", "12", "finished"),
+        ("0.9", "4", "finished"),
+        ("0.9", "12", "finished"),
+    ]
     assert all(0 < float(row["agent/ratio_to_ub"]) <= 1.2 for row in rows)
     table = (sweep / "summary.md").read_text()
     assert "| job | agent.gamma | env.wind | frames |" in table and "| 3 | `0.9` | `12` | 400 |" in table
@@ -367,5 +371,5 @@ def test_a_sweep_over_the_discount_and_the_wind_summarises_and_names_each_job_by
         values = hparams_of(run)
         assert (values["agent.gamma"], values["env.wind"], values["reward.a"]) == (float(gamma), float(wind), 5.0)
         assert values["env.sea.wind"] == float(wind) and values["agent.name"] == "ppo"
-    assert sorted(path.name for path in (sweep / "tensorboard").iterdir()) == [
-        "agent.gamma=0,env.wind=12", "agent.gamma=0,env.wind=4", "agent.gamma=0.9,env.wind=12", "agent.gamma=0.9,env.wind=4"]  # fmt: skip
+    names = sorted(path.name for path in (sweep / "tensorboard").iterdir())
+    assert names == [f"agent.gamma={g},env.wind={w}" for g in ("0", "0.9") for w in ("12", "4")]

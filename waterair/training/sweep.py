@@ -207,7 +207,7 @@ def swept_at(root: Path) -> list[str]:
     params = hydra.sweeper.get("params") or {}
     given = [*(f"{key}={value}" for key, value in params.items()), *hydra.overrides.task]
     parsed = OverridesParser.create().parse_overrides(given)
-    return list(dict.fromkeys(override.get_key_element().lstrip("+~") for override in parsed if override.is_sweep_override()))
+    return list(dict.fromkeys(o.get_key_element().lstrip("+~") for o in parsed if o.is_sweep_override()))
 
 
 def swept_keys(jobs: list[Job]) -> list[str]:
