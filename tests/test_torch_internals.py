@@ -2,7 +2,13 @@
 so that a release which changes one is found by ``make test`` and not by a slow run (an evaluation that compiles
 a graph per batch, a step that runs eagerly after a wall of warnings). Traced with dynamo's counting backend
 or AOT autograd's eager one; one test compiles two small kernels to C++ (inductor's loops,
-:mod:`waterair.core.inductor`)."""
+:mod:`waterair.core.inductor`).
+
+The tests that depend on the CPU's instruction set are marked ``capability`` and ``make test-portable`` runs them
+under each one the CPU has (``ATEN_CPU_CAPABILITY``; inductor's vector width follows it): the inductor fix's
+below (the fault appears in 512-bit loops alone, :data:`FAULT_WIDTH`) and the channel recordings of
+tests/test_channel_reference.py (exact on the recording machine's identity, which names the capability; within
+their tolerance elsewhere)."""
 
 import re
 from collections.abc import Callable
@@ -161,7 +167,27 @@ def test_every_setting_the_compiled_step_reads_is_a_one_element_tensor_in_its_dt
     assert settings["intensity_noise"].item() == pytest.approx(0.1)
 
 
+FAULT_WIDTH = 512
+"""The vector width (bits) at which torch 2.13.0's rule opens a thread team per row of a sum over nodes of 3-vectors
+(AVX-512: a 3-element loop under a 16-float step counts zero steps). With 256-bit loops (AVX2: 8 floats) and
+scalar ones it opens one, fixed or not (seen on AVX-512 and AVX2 machines alike)."""
+
+
+def vector_widths() -> list[int]:
+    """The vector widths inductor may emit here: the instruction set it picks itself (``cpp.simdlen`` unset; under
+    ``ATEN_CPU_CAPABILITY``, that capability's) and each narrower one the CPU has; ``[1]``, scalar loops, where none."""
+    from torch._inductor import config
+    from torch._inductor.cpu_vec_isa import pick_vec_isa, valid_vec_isa_list
+
+    with config.patch({"cpp.simdlen": None}):  # the tests' own scalar loops set aside
+        picked = pick_vec_isa().bit_width() if pick_vec_isa() else 0
+    return sorted({isa.bit_width() for isa in valid_vec_isa_list() if isa.bit_width() <= picked}, reverse=True) or [1]
+
+
+@pytest.mark.capability
 def test_a_sum_over_nodes_of_vectors_shares_its_rows_between_threads_not_each_rows_sum(monkeypatch):
+    """The fix is applied; at the width where the fault appears (:data:`FAULT_WIDTH`) torch's own rule opens a team
+    per row and the fixed one does not; at every other width the fixed rule writes the code torch's writes."""
     from torch._inductor import config
     from torch._inductor.codegen import cpp
     from torch._inductor.utils import fresh_cache, run_and_get_cpp_code
@@ -181,22 +207,46 @@ def test_a_sum_over_nodes_of_vectors_shares_its_rows_between_threads_not_each_ro
         directions = vectors / torch.linalg.vector_norm(vectors, dim=-1, keepdim=True)
         return (weight.unsqueeze(-1) * directions).sum(1) / weight.sum(1, keepdim=True)
 
-    def thread_teams(depth) -> int:
+    def kernels(code: str) -> list[str]:
+        """The C++ of each kernel in inductor's output, without the lines naming this compile's cache folder."""
+        sources = re.findall(r"r\'\'\'(.*?)\'\'\'", code, re.S)
+        return ["\n".join(line for line in source.splitlines() if "#include" not in line) for source in sources]
+
+    def compiled(depth, width) -> str:
         monkeypatch.setattr(cpp.LoopNest, "max_parallel_depth", depth)
-        # vector loops (the tests' scalar ones never meet the fault), two threads, compiled afresh; without a
-        # precompiled header, which vector flags would make another one to build for two compiles (4 s)
-        patch = {"cpp.simdlen": None, "cpp.threads": 2, "fx_graph_cache": False, "cpp_cache_precompile_headers": False}
+        # loops of this width (the tests' are scalar), two threads, compiled afresh; without a precompiled header,
+        # which other vector flags would make another one to build (4 s)
+        patch = {"cpp.simdlen": width, "cpp.threads": 2, "fx_graph_cache": False, "cpp_cache_precompile_headers": False}
         with config.patch(patch), fresh_cache():
             torch._dynamo.reset()
             values, code = run_and_get_cpp_code(torch.compile(sums), weight, vectors)
         torch.testing.assert_close(values, sums(weight, vectors))
-        return code.count("#pragma omp parallel")
+        return code
 
-    assert thread_teams(fixed.replaced) > 1, (
-        f"torch's own {inductor.REPLACED} no longer opens a thread team per row of a sum over nodes of 3-vectors: "
-        "waterair.core.inductor's fix is not needed any more"
-    )
-    assert thread_teams(fixed) == 1, f"the fixed {inductor.REPLACED} still opens a thread team per row"
+    for width in vector_widths():
+        torchs, ours = compiled(fixed.replaced, width), compiled(fixed, width)
+        assert ours.count("#pragma omp parallel") == 1, f"the fixed {inductor.REPLACED} opens a team per row ({width})"
+        if width == FAULT_WIDTH:
+            assert torchs.count("#pragma omp parallel") > 1, (
+                f"torch's own {inductor.REPLACED} no longer opens a thread team per row of a sum over nodes of "
+                f"3-vectors in {width}-bit loops: waterair.core.inductor's fix is not needed any more"
+            )
+        else:
+            assert kernels(ours) == kernels(torchs) != [], f"the fix changes {width}-bit loops: torch opens one team"
+
+
+def test_the_fix_is_judged_at_the_width_where_the_fault_appears(monkeypatch):
+    """A machine without 512-bit loops (AVX2, or ATEN_CPU_CAPABILITY=avx2) checks that the fix changes nothing; one
+    with them checks that the fix is needed too (the fault's own width first)."""
+    from torch._inductor import cpu_vec_isa
+
+    monkeypatch.setenv("ATEN_CPU_CAPABILITY", "avx2")
+    assert FAULT_WIDTH not in vector_widths()
+    monkeypatch.setenv("ATEN_CPU_CAPABILITY", "default")
+    assert vector_widths() == [1]
+    if any(isa.bit_width() == FAULT_WIDTH for isa in cpu_vec_isa.valid_vec_isa_list()):
+        monkeypatch.setenv("ATEN_CPU_CAPABILITY", "avx512")
+        assert vector_widths()[0] == FAULT_WIDTH
 
 
 @pytest.mark.usefixtures("inductor")
