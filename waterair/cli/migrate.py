@@ -28,7 +28,8 @@ from pathlib import Path
 from omegaconf import OmegaConf
 
 from waterair.core.files import atomic_write_text
-from waterair.envs.groups import FIXED, RENAMED
+from waterair.envs.groups import RENAMED
+from waterair.envs.operating_point import FIXED
 from waterair.physics.channel import CHANNELS, SinglePathChannel
 from waterair.physics.sea import SPECTRA
 

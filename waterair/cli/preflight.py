@@ -26,7 +26,8 @@ from omegaconf.errors import OmegaConfBaseException
 
 from waterair.cli.errors import CommandLineError
 from waterair.cli.launch import check_launcher, runs_elsewhere
-from waterair.envs.groups import FIXED, RENAMED
+from waterair.envs.groups import RENAMED
+from waterair.envs.operating_point import FIXED
 from waterair.training.config import CONF_DIR
 
 PASS_THROUGH = {
@@ -79,7 +80,7 @@ def check_renamed(argv: Sequence[str]) -> None:
     """Refuse a key of earlier releases with one line naming today's: ``env.fetch=1e4`` (``env.sea.fetch``),
     ``env.lattice_nodes=5`` (``env.channel.nodes``), ``env.channel=single_path`` (the group
     ``env/channel=single_path``). ``env.wind`` and ``env.divergence`` are today's keys again (the operating point,
-    :data:`~waterair.envs.groups.FIXED`). docs/environment.md, "Renamed keys"."""
+    :data:`~waterair.envs.operating_point.FIXED`). docs/environment.md, "Renamed keys"."""
     for arg in argv:
         old = OLD_KEY.match(arg)
         if old is None:

@@ -23,9 +23,9 @@ from dataclasses import dataclass
 
 from waterair.core.devices import resolve_device
 from waterair.core.validation import check_choice, check_int, check_range
+from waterair.envs import operating_point
 from waterair.envs.groups import (
     DEFAULT_SPECTRUM,
-    FIXED,
     PHYSICS,
     SHARED_SEA_KEYS,
     as_mapping,
@@ -34,6 +34,7 @@ from waterair.envs.groups import (
     plain,
     unknown_key,
 )
+from waterair.envs.operating_point import LOW_OPEN, PER_LINK
 from waterair.physics.channel import CHANNELS, Beacon, Channel, ChannelModel, FullChannel, LinkGeometry, Transceiver
 from waterair.physics.channel import channel as build_channel
 from waterair.physics.sea import SeaState, sea_state
@@ -46,16 +47,6 @@ BASE_NEEDS = {"aoa_tracker": ("spot", "spot_valid"), "beacon_tracker": ("spot", 
 """The observation parts each residual base reads."""
 ACTION_KEYS = ("action_mode", "residual_deg", "residual_beams", "residual_base")
 """The keys that say how an action turns into tilts, which ``replica_actions`` may set per replica."""
-PER_LINK = {
-    "wind": (0.0, 60.0, "m/s"),
-    "offset": (0.0, 10.0, ""),
-    "offset_azimuth": (-360.0, 360.0, "deg"),
-    "wind_direction": (-360.0, 360.0, "deg"),
-    "divergence": (0.0, 1.5, "rad"),
-}
-"""Quantities each link may draw from ``<name>_range`` or take from ``<name>_values``: (low, high, unit)."""
-LOW_OPEN = ("wind", "divergence")
-"""The :data:`PER_LINK` quantities whose lower bound is excluded."""
 OBSERVATION_EXTRAS = (
     "spot",
     "spot_valid",
@@ -124,8 +115,8 @@ class EnvConfig:
     spot_threshold: float = 0.0  # measured intensity below which the detector reads no spot
     beacon_noise_rad: float = 0.0  # standard deviation of each component of the beacon reading, as an angle (rad)
     beacon_threshold: float = 0.0  # beacon intensity (of its calm-sea value) below which it reads nothing
-    # the operating point: one value for every link, written into its group's key (groups.FIXED), exclusive with the
-    # same quantity's range and values below; None: the group's own (docs/environment.md, "The operating point")
+    # the operating point: one value for every link, written into its group's key (operating_point.FIXED), exclusive
+    # with the same quantity's range and values; None: the group's own (docs/environment.md, "The operating point")
     wind: float | None = None  # m/s: env.sea.wind
     wind_direction: float | None = None  # deg: env.sea.wind_direction_deg
     offset: float | None = None  # offset ratio: env.geometry.offset_ratio
@@ -157,7 +148,9 @@ class EnvConfig:
     compile_kernel: bool = False
 
     def __post_init__(self) -> None:
-        self._fix_operating_point()
+        defaults = {group: type(self).__dataclass_fields__[group].default for group in PHYSICS}
+        for key, value in operating_point.fixed(self, defaults).items():  # written into the groups before they build
+            object.__setattr__(self, key, value)
         object.__setattr__(self, "sea", physics_group("sea", self.sea, SeaState, build_sea))
         object.__setattr__(self, "geometry", physics_group("geometry", self.geometry, LinkGeometry, LinkGeometry))
         object.__setattr__(self, "optics", physics_group("optics", self.optics, Transceiver, Transceiver))
@@ -235,35 +228,6 @@ class EnvConfig:
             given = f"{first} has {count} entries and " + ", ".join(f"{key} {n}" for key, n in others)
             raise ValueError(f"{given}; given together they must have one entry per scenario point")
 
-    def _fix_operating_point(self) -> None:
-        """Each ``env.<name>`` of :data:`~waterair.envs.groups.FIXED` that is given: in range, alone (no range or
-        values of the same quantity), and written into its group's key, which may state it too but not otherwise."""
-        fields = type(self).__dataclass_fields__
-        defaulted = {group for group, _ in FIXED.values() if getattr(self, group) is fields[group].default}
-        for name, (group, key) in FIXED.items():
-            value = getattr(self, name)
-            if value is None:
-                continue
-            low, high, unit = PER_LINK[name]
-            value = check_range(f"env.{name}", value, low, high, low_open=name in LOW_OPEN, unit=unit)
-            object.__setattr__(self, name, float(value))
-            for draw in (f"{name}_range", f"{name}_values"):
-                if getattr(self, draw) is not None:
-                    raise ValueError(
-                        f"env.{name} = {value:g} and env.{draw} = {list(getattr(self, draw))} are both set; env.{name} "
-                        f"gives every link one value, env.{draw} gives each its own: set one (env.{draw}=null)"
-                    )
-            given = getattr(self, group)
-            if group in defaulted:  # the group was not given: its default, with this value
-                given = given if isinstance(given, Mapping) else as_mapping(given)
-            elif (stated := given.get(key) if isinstance(given, Mapping) else getattr(given, key)) not in (None, value):
-                raise ValueError(
-                    f"env.{name} = {value:g} and env.{group}.{key} = {stated:g} disagree; env.{name} sets "
-                    f"env.{group}.{key}: give one of them"
-                )
-            if isinstance(given, Mapping):
-                object.__setattr__(self, group, {**given, key: value})
-
     def _check_replica_keys(self, name: str, allowed: tuple[str, ...]) -> None:
         """``env.<name>``: one mapping of some of ``allowed`` per replica, each valid; kept as (key, value) pairs."""
         given = getattr(self, name)
@@ -339,17 +303,7 @@ class EnvConfig:
         defaults (``channel={"name": "single_path"}``).
         """
         current = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}  # untouched groups stay built
-        for name, (group, key) in FIXED.items():
-            given = changes.get(group)
-            if changes.get(name) is not None:  # the group's key follows the operating point
-                if given is None or (isinstance(given, Mapping) and key not in given):
-                    changes = {**changes, group: {**(given or {}), key: changes[name]}}
-            elif name not in changes and (
-                changes.get(f"{name}_range") is not None
-                or changes.get(f"{name}_values") is not None
-                or (given is not None and (not isinstance(given, Mapping) or key in given))
-            ):
-                changes = {**changes, name: None}  # the quantity is set another way now
+        changes = operating_point.followed(changes)  # env.wind and env.sea.wind kept together
         for group in PHYSICS:
             given = changes.get(group)
             if not isinstance(given, Mapping):

@@ -33,17 +33,7 @@ RENAMED = {
     "montecarlo_points": "channel.points",
 }
 """The env keys of earlier releases (flat beside the interface keys) → where each lives now, under ``env``. Two of
-those names are today's keys again (:data:`FIXED`): ``env.wind`` and ``env.divergence``."""
-FIXED = {
-    "wind": ("sea", "wind"),
-    "wind_direction": ("sea", "wind_direction_deg"),
-    "offset": ("geometry", "offset_ratio"),
-    "offset_azimuth": ("geometry", "offset_azimuth_deg"),
-    "divergence": ("optics", "divergence"),
-}
-"""The quantities each link may draw (``env.<name>_range``, ``env.<name>_values``) → the group's key that holds their
-one value. ``env.<name>`` gives every link that value: it sets the group's key and leaves the draws off
-(docs/environment.md, "The operating point")."""
+those names are today's keys again (:data:`waterair.envs.operating_point.FIXED`): ``env.wind``, ``env.divergence``."""
 MIGRATE = "python -m waterair.cli.migrate RUN rewrites an earlier release's run config"
 
 

@@ -15,6 +15,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from waterair.agents.checkpoint import CheckpointError, PolicyFile, read_policy
 from waterair.envs.config import SENSOR_KEYS
+from waterair.envs.operating_point import FIXED
 
 ASSETS = Path(__file__).resolve().parents[1] / "assets"
 INTERFACE_KEYS = (
@@ -31,13 +32,7 @@ INTERFACE_KEYS = (
     "dtype",
 )
 """Environment keys a learned policy keeps from its own training config; the scenario sets the rest."""
-TRAINED_ON = {
-    "wind_range": ("sea", "wind"),
-    "wind_direction_range": ("sea", "wind_direction_deg"),
-    "offset_range": ("geometry", "offset_ratio"),
-    "offset_azimuth_range": ("geometry", "offset_azimuth_deg"),
-    "divergence_range": ("optics", "divergence"),
-}
+TRAINED_ON = {f"{name}_range": home for name, home in FIXED.items()}
 """What the report says a learned policy was trained on: each per-link draw's range, else its one value."""
 SHIPPED = {
     "default": (),

@@ -22,7 +22,7 @@ from waterair.core.files import atomic_write_json, atomic_write_text
 from waterair.core.threads import AUTO as AUTO_THREADS
 from waterair.core.threads import choose_threads, torch_threads
 from waterair.envs.controllers import controller_for
-from waterair.envs.groups import FIXED
+from waterair.envs.operating_point import FIXED
 from waterair.evaluation.compiling import compiled_group
 from waterair.evaluation.groups import reading
 from waterair.evaluation.metrics import FADE_FRACTION, METRICS
