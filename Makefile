@@ -29,10 +29,11 @@ $(STAMP): pyproject.toml
 	{ $(PYTHON) -m compileall -qq -j 0 $$site || true; }
 	touch $(STAMP)
 
-# Train into RUN, then evaluate that policy against the baselines into RUN/evaluation.
+# Train into RUN, then evaluate that policy against its base, the classical controllers and the bound on what a first
+# run needs (+study=first_run: S1 and S5's 10 % points) into RUN/evaluation; make evaluate ARGS=run=RUN: all of S1-S5.
 train: $(STAMP)
 	$(PYTHON) train.py hydra.run.dir=$(RUN) $(ARGS)
-	$(PYTHON) evaluate.py run=$(RUN) hydra.run.dir=$(RUN)/evaluation
+	$(PYTHON) evaluate.py run=$(RUN) hydra.run.dir=$(RUN)/evaluation +study=first_run
 
 # Evaluate the shipped policies (or ARGS="run=outputs/train/DATE/TIME").
 evaluate: $(STAMP)

@@ -278,3 +278,16 @@ def test_the_documented_commands_include_the_ones_the_project_is_used_by():
     lines = {" ".join([script, *argv]) for script, argv in COMMANDS}
     assert "train.py env.wind=12 reward.a=5" in lines
     assert "train.py -m agent.gamma=0,0.9 reward.a=5,10 env.wind=4,12,20 hydra/launcher=joblib" in lines
+
+
+def test_make_trains_first_look_is_s1_and_s5s_headline_points_of_the_whole_study():
+    from waterair.cli import evaluation
+
+    first, whole = compose_config("evaluate", ["+study=first_run"]), compose_config("evaluate")
+    assert [name for name, scenario in first.scenarios.items() if scenario is not None] == ["S1", "S5"]
+    assert first.scenarios.S1 == whole.scenarios.S1 and first.scenarios.S5.offset_ratios == [0.1]
+    assert first.scenarios.S5.winds == whole.scenarios.S5.winds  # the headline rates at 4, 12 and 20 m/s
+    assert {"tracking", "beacon_tracker", "aoa_tracker", "intensity_dither"} <= set(first.baselines)
+    assert set(first.baselines) < set(whole.baselines)
+    assert "evaluate.py run=$(RUN) hydra.run.dir=$(RUN)/evaluation +study=first_run" in (ROOT / "Makefile").read_text()
+    preflight("evaluate", ["+study=first_run"], evaluation.check)  # returns: it runs

@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from omegaconf import DictConfig
+from omegaconf import DictConfig, ListConfig
 
 from waterair.cli.console import quiet_dependencies
 from waterair.core.threads import AUTO, choose_threads, torch_threads
@@ -35,4 +35,13 @@ def run(cfg: DictConfig, output_dir: str | Path) -> None:
     figures = sum(path.suffix == ".png" for path in written)
     tables = ", ".join(path.name for path in written if path.suffix == ".csv")
     log.info(f"Wrote {len(written)} files to {out}: metrics.json, {tables}, {figures} figures, report.md")
+    skipped = [name for name, scenario in cfg.scenarios.items() if scenario is None]
+    if skipped:  # make train's first look (+study=first_run): say how to see the rest
+        given = " ".join(f"{key}={_argument(cfg[key])}" for key in ("run", "checkpoint") if cfg.get(key) is not None)
+        log.info(f"Not run: {', '.join(skipped)}; the whole study: .venv/bin/python evaluate.py {given}".rstrip())
     log.info(f"Report: {out / 'report.md'} ({result.seconds:.0f} s)")
+
+
+def _argument(value) -> str:
+    """A ``run=``/``checkpoint=`` value as the command line takes it: a path, or ``[A,B]``."""
+    return f"[{','.join(str(item) for item in value)}]" if isinstance(value, ListConfig | list) else str(value)
