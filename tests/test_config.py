@@ -10,7 +10,7 @@ from waterair.training.config import validate
 GROUPS = {
     group.name: sorted(p.stem for p in group.glob("*.yaml"))
     for group in sorted((ROOT / "conf").iterdir())
-    if group.is_dir() and group.name not in ("env", "hydra", "experiment")
+    if group.is_dir() and group.name not in ("env", "hydra", "experiment", "study")  # study: evaluate.py's, test_cli.py
 }
 OPTIONS = [(group, option) for group, options in GROUPS.items() for option in options]
 OPTIONS += [
