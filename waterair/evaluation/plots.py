@@ -295,12 +295,14 @@ def _style(result, policy: dict) -> tuple:
 
 
 def _save_with_legend(fig, ax, path: Path) -> Path:
-    """Save ``fig`` with the legend of ``ax`` below every plot, outside the data."""
+    """Save ``fig`` with the legend of ``ax`` below every plot, outside the data, every label inside the image (long
+    ones, a controller's sensing spelled out, in three columns)."""
     handles, labels = ax.get_legend_handles_labels()
-    rows = -(-len(labels) // 4)
-    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 4), fontsize=8, frameon=False,
+    columns = 4 if max((len(label) for label in labels), default=0) <= 24 else 3
+    rows = -(-len(labels) // columns)
+    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), columns), fontsize=8, frameon=False,
                handlelength=3.5)  # fmt: skip
     fig.tight_layout(rect=(0, 0.035 * rows + 0.01, 1, 1))
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
