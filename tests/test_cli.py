@@ -46,6 +46,12 @@ CASES = [
     ("train.py", "actor.hidden=5", "actor.hidden = 5 must be a list of layer widths"),
     ("train.py", "link.k_a=1.5", "link.k_a = 1.5 is out of range; allowed [0, 1]"),
     ("evaluate.py", "link.power_w=-1", "link.power_w = -1 is out of range; allowed (0, 1000] W"),
+    (
+        "evaluate.py",
+        "env.wind=8",
+        "env.wind = 8 is not where evaluate.py takes its points; each scenario sets its own: "
+        "scenarios.S1.wind, scenarios.S3.winds",
+    ),
 ]
 
 

@@ -148,6 +148,15 @@ class EvaluationPlan:
     processes: str = "1 process"  # a line saying how many of each and why
 
 
+SCENARIO_SETS = {
+    "wind": "scenarios.S1.wind, scenarios.S3.winds, scenarios.S5.winds",
+    "offset": "scenarios.S1.offset_ratio, scenarios.S2.offset_ratios, scenarios.S5.offset_ratios",
+    "offset_azimuth": "scenarios.S4.azimuths_deg",
+}
+"""The operating point's keys the scenarios' points replace, and the keys that set them instead (``env.wind_direction``
+and ``env.divergence`` stay the scenarios': they keep the sea's direction and, but for S5, the optics' divergence)."""
+
+
 def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) -> EvaluationPlan:
     """Check every config value, checkpoint file and observation size of ``cfg``; raise one-line errors.
 
@@ -160,6 +169,10 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
     compile_kernel = str(values.get("compile_kernel", "auto")).lower()
     check_choice("env.compile_kernel", compile_kernel, COMPILE_CHOICES)
     base = EnvConfig.from_mapping({**values, "compile_kernel": compile_kernel == "true"})
+    for name, scenario_key in SCENARIO_SETS.items():  # a key the scenarios would replace is not silently dropped
+        if getattr(base, name) is not None:
+            raise ValueError(f"env.{name} = {getattr(base, name):g} is not where evaluate.py takes its points; each "
+                             f"scenario sets its own: {scenario_key} (docs/evaluation.md)")  # fmt: skip
     device = resolve_device(base.device, "env.device")
     base = base.replace(device=str(device))  # reports name the device that ran, not "auto"
     link_values = OmegaConf.to_container(cfg.link, resolve=True)
