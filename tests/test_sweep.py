@@ -336,8 +336,7 @@ def hparams_of(events: Path) -> dict:
             for value in event.summary.value:
                 if value.tag == "_hparams_/session_start_info":
                     start = HParamsPluginData.FromString(value.metadata.plugin_data.content).session_start_info
-                    found = {key: hp.WhichOneof("kind") and getattr(hp, hp.WhichOneof("kind")) for key, hp in
-                             start.hparams.items()}  # fmt: skip
+                    found = {key: getattr(hp, hp.WhichOneof("kind")) for key, hp in start.hparams.items()}
     return found
 
 

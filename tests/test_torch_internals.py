@@ -6,9 +6,10 @@ or AOT autograd's eager one; one test compiles two small kernels to C++ (inducto
 
 The tests that depend on the CPU's instruction set are marked ``capability`` and ``make test-portable`` runs them
 under each one the CPU has (``ATEN_CPU_CAPABILITY``; inductor's vector width follows it): the inductor fix's
-below (the fault appears in 512-bit loops alone, :data:`FAULT_WIDTH`) and the channel recordings of
-tests/test_channel_reference.py (exact on the recording machine's identity, which names the capability; within
-their tolerance elsewhere)."""
+below (the fault appears in 512-bit loops alone, :data:`FAULT_WIDTH`), the channel recordings of
+tests/test_channel_reference.py and the short training runs' of tests/test_training.py (each exact on the recording
+machine's identity, which names the capability; within its tolerance elsewhere, the training runs' not under scalar
+kernels: ``SCALAR_KERNELS``)."""
 
 import re
 from collections.abc import Callable

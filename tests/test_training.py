@@ -66,6 +66,11 @@ count."""
 RECORDED_RUNS = ROOT / "tests" / "data" / "training_reference.pt"
 """Each short run's final actor and metrics as one machine trained them, with that machine's identity
 (:func:`conftest.machine`), written by ``python tests/test_training.py`` (:func:`record_short_runs`)."""
+SCALAR_KERNELS = torch.backends.cpu.get_cpu_capability() == "DEFAULT"
+"""torch's kernels without vector instructions (a CPU without AVX2, or ``ATEN_CPU_CAPABILITY=default``): their
+rounding took the short PPO run's zero-started output layer 37 % of its norm from the AVX-512 recording in 800
+frames (its hidden layers 2 %), more than :data:`ACTOR_TOLERANCE`; there only such a machine's own recording is
+compared."""
 ACTOR_TOLERANCE = 0.05
 """Another machine's recording: each of its actor's tensors within this of it, relative in norm. 800 frames of
 updates carry one machine's rounding into the weights: an AMD Zen 4 against the Intel recording moved them by up to
@@ -91,6 +96,7 @@ def assert_the_reloaded_policy_scores_what_the_run_scored(cfg, metrics: dict, ru
 
 
 @pytest.mark.slow
+@pytest.mark.capability
 @pytest.mark.parametrize("name", list(SHORT_RUNS))
 def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, name):
     """A short run of each agent on the defaults (the beacon's observation, 2 × 17 values)."""
@@ -111,7 +117,7 @@ def test_short_run_logs_scalars_and_a_loadable_checkpoint(tmp_path, name):
     holding = [r for r in torch.load(RECORDED_RUNS, weights_only=True)["recordings"] if name in r["runs"]]
     mine = [recorded for recorded in holding if recorded["identity"] == run_identity()]
     assert holding, f"no machine's recording holds the {name} run"
-    for recorded in mine or holding:
+    for recorded in mine or ([] if SCALAR_KERNELS else holding):
         expected = recorded["runs"][name]
         assert set(state["actor"]) == set(expected["actor"])
         for key, value in expected["actor"].items():
