@@ -28,7 +28,7 @@ from waterair.cli.errors import CommandLineError
 from waterair.cli.launch import check_launcher, runs_elsewhere
 from waterair.envs.groups import RENAMED
 from waterair.envs.operating_point import FIXED
-from waterair.training.config import CONF_DIR
+from waterair.training.config import CONF_DIR, is_group_choice
 
 PASS_THROUGH = {
     *("-h", "--help", "--hydra-help", "-i", "--info", "-c", "--cfg", "--version", "--shell-completion", "-sc"),
@@ -173,7 +173,7 @@ def compose_checked(config_name: str, overrides: Sequence[str]) -> DictConfig:
     The known keys are those of the same group choices without the other overrides: a key that
     only ``+key=value`` brings in is an error naming it, and so is removing one with ``~key``.
     """
-    groups = [o for o in overrides if _is_group_choice(o)]
+    groups = [o for o in overrides if is_group_choice(o)]
     removal = next((o for o in overrides if o.startswith("~") and o not in groups), None)
     if removal:
         raise CommandLineError(f"{removal.split('=')[0]} removes a key; set a value instead")
@@ -237,12 +237,6 @@ def _compose(config_name: str, overrides: Sequence[str]) -> DictConfig:
             return compose(config_name=config_name, overrides=list(overrides))
     except (HydraException, OmegaConfBaseException) as error:
         raise CommandLineError(one_line(error)) from None
-
-
-def _is_group_choice(override: str) -> bool:
-    """``group=option`` or ``+group=option`` for a config group of ours or of Hydra's."""
-    key = override.lstrip("+~").split("=")[0]
-    return key.startswith("hydra/") or (CONF_DIR / key).is_dir()
 
 
 def _keys(config: DictConfig) -> set[str]:

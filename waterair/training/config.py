@@ -40,6 +40,13 @@ OmegaConf.register_new_resolver("unless_set", lambda given, value: value if give
 OmegaConf.register_new_resolver("gpus_for_device", lambda device: 1 if device == "cuda" else None, replace=True)
 
 
+def is_group_choice(override: str) -> bool:
+    """``group=option`` or ``+group=option`` (``agent=td3``, ``env/sensor=ideal``) for a config group of ours or of
+    Hydra's, rather than a key's value."""
+    key = override.lstrip("+~").split("=")[0]
+    return key.startswith("hydra/") or (CONF_DIR / key).is_dir()
+
+
 def validate(cfg: DictConfig) -> None:
     """Check every key before any work; raise ``ValueError`` naming key, value and allowed range."""
     values = OmegaConf.to_container(cfg.env, resolve=True)

@@ -33,7 +33,7 @@ from waterair.training.algorithms import create
 from waterair.training.builders import env_config, make_actor, make_buffer, make_collector, make_env, make_link
 from waterair.training.checkpoint import CHECKPOINT, Learner, Progress, load_checkpoint, save_checkpoint
 from waterair.training.compiling import compile_plan
-from waterair.training.config import CONF_DIR, validate
+from waterair.training.config import is_group_choice, validate
 from waterair.training.run_log import RunLog
 
 FINAL_POLICIES = {"straight_facing": "straight_facing", "flat_snell": "flat_snell"}
@@ -254,7 +254,7 @@ def hyperparameters(cfg: DictConfig, overrides: Sequence[str] = ()) -> dict[str,
         key, _, value = override.lstrip("+~").partition("=")
         if key.split(".")[0].split("/")[0] in ("hydra", "resume"):
             continue
-        if (CONF_DIR / key).is_dir():  # a group's option (agent=td3, env/sensor=ideal), by its name
+        if is_group_choice(override):  # a group's option (agent=td3, env/sensor=ideal), by its name
             found[key] = value
         elif key not in keys:
             keys.append(key)
