@@ -1,11 +1,10 @@
 """Entry points a user can trust: a rejected command line exits with one line and writes nothing."""
 
 import logging
-import subprocess
-import sys
 import warnings
 
 import pytest
+import run_scripts
 import torch
 from conftest import ROOT, compose_config, rejection
 
@@ -70,9 +69,7 @@ END_TO_END = [case for case in CASES if case[1] in ("link.k_a=1.5", "checkpoint=
 @pytest.mark.parametrize("script,override,message", END_TO_END, ids=[f"{s}:{o}" for s, o, _ in END_TO_END])
 def test_a_rejected_command_exits_non_zero_with_one_line_on_stderr(script, override, message, bad_files):
     before = tree(ROOT / "outputs")
-    done = subprocess.run(
-        [sys.executable, script, override.format(**bad_files)], cwd=ROOT, capture_output=True, text=True, timeout=120
-    )
+    done = run_scripts.run(script, override.format(**bad_files), timeout=120)
     assert done.returncode == 1
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], done.stderr
@@ -238,11 +235,8 @@ def test_jobs_sbatch_refuses_after_the_checks_are_one_line_and_leave_no_sweep_fo
     (bin_dir / "sbatch").chmod(0o755)
     stub(bin_dir, "srun")
     sweep = tmp_path / "sweep"
-    done = subprocess.run(
-        [sys.executable, "train.py", *SLURM, f"hydra.sweep.dir={sweep}"],
-        cwd=ROOT, capture_output=True, text=True, timeout=300,
-        env={"PATH": f"{bin_dir}:/usr/bin:/bin", "HOME": str(tmp_path)},
-    )  # fmt: skip
+    env = {"PATH": f"{bin_dir}:/usr/bin:/bin", "HOME": str(tmp_path)}
+    done = run_scripts.run("train.py", *SLURM, f"hydra.sweep.dir={sweep}", env=env)
     assert done.returncode == 1, done.stderr[-3000:]
     assert done.stderr.strip().splitlines() == [f"error: the scheduler refused the jobs: {refusal}"]
     assert not sweep.exists()

@@ -5,12 +5,11 @@ import importlib.util
 import json
 import logging
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import optuna
 import pytest
+import run_scripts
 from conftest import ONE_PATH, ROOT, TINY, compose_config
 from hydra import initialize_config_dir
 from hydra.core.global_hydra import GlobalHydra
@@ -139,11 +138,11 @@ def test_the_search_and_slurm_options_are_train_pys():
 
 @pytest.mark.slow
 def test_an_optuna_search_of_two_tiny_trials_writes_its_summary_and_best(tmp_path):
-    done = subprocess.run(
-        [sys.executable, "train.py", "-m", "hydra/sweeper=optuna", "hydra.sweeper.n_trials=2", "hydra.sweeper.n_jobs=1",
-         "hydra.sweeper.sampler.seed=0", *TINY, *ONE_PATH, "total_frames=400", "agent.gamma=interval(0,0.3)",
-         "reward.pointing=interval(0,0.2)", "env/sea=choice(calm,rough)", f"hydra.sweep.dir={tmp_path}"],
-        cwd=ROOT, capture_output=True, text=True, timeout=600, env={**os.environ, "OMP_NUM_THREADS": "1"},
+    done = run_scripts.run(
+        "train.py", "-m", "hydra/sweeper=optuna", "hydra.sweeper.n_trials=2", "hydra.sweeper.n_jobs=1",
+        "hydra.sweeper.sampler.seed=0", *TINY, *ONE_PATH, "total_frames=400", "agent.gamma=interval(0,0.3)",
+        "reward.pointing=interval(0,0.2)", "env/sea=choice(calm,rough)", f"hydra.sweep.dir={tmp_path}",
+        timeout=600, env={**os.environ, "OMP_NUM_THREADS": "1"},
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-3000:]
     assert done.stdout.strip().splitlines()[-1] == f"Summary of 2 jobs: {tmp_path / 'summary.md'}"

@@ -7,13 +7,12 @@ import math
 import os
 import shutil
 import signal
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import pytest
+import run_scripts
 import torch
 from conftest import ONE_PATH, ROOT, TINY, compose_config, machine, rejection
 from omegaconf import OmegaConf
@@ -54,10 +53,8 @@ def scalars(run_dir: Path) -> dict:
     return {tag: [(e.step, e.value) for e in events.Scalars(tag)] for tag in events.Tags()["scalars"]}
 
 
-def run_cli(*args, timeout=300, **popen):
-    return subprocess.run(
-        [sys.executable, "train.py", *args], cwd=ROOT, capture_output=True, text=True, timeout=timeout, **popen
-    )
+def run_cli(*args, timeout=300, env=None):
+    return run_scripts.run("train.py", *args, env=env, timeout=timeout)
 
 
 SHORT_RUNS = {"ppo": [], "ddpg": ["agent=ddpg"], "td3": ["agent=td3"], "ou": ["agent=ddpg", "noise=ou"]}
@@ -183,9 +180,7 @@ def test_the_saved_policy_is_the_averaged_or_the_last_actor(weights, tmp_path):
 def test_killed_run_resumes_to_the_configured_frames(tmp_path):
     run_dir = tmp_path / "run"
     args = [*TINY, *ONE_PATH, "total_frames=1200", "checkpoint.every_frames=400", f"hydra.run.dir={run_dir}"]
-    process = subprocess.Popen(
-        [sys.executable, "train.py", *args], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
-    )
+    process = run_scripts.Script("train.py", *args)
     checkpoint = run_dir / "checkpoints" / "last.pt"
     deadline = time.time() + 240
     while time.time() < deadline and process.poll() is None:
@@ -194,7 +189,7 @@ def test_killed_run_resumes_to_the_configured_frames(tmp_path):
         time.sleep(0.2)
     assert process.poll() is None, "the run finished before it could be killed"
     process.send_signal(signal.SIGKILL)
-    process.wait()
+    assert process.wait(30) == -signal.SIGKILL
     killed_at = torch.load(checkpoint, weights_only=True)["frames"]
     assert 800 <= killed_at < 1200
 
