@@ -11,7 +11,7 @@ import gc
 import sys
 
 if __name__ == "__main__":
-    gc.disable()  # until the imports are done (waterair.core.process)
+    gc.disable()  # until the imports are done (waterair.core.process.set_up_process)
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -19,7 +19,7 @@ from omegaconf import DictConfig
 
 from waterair.cli import evaluation
 from waterair.cli.preflight import preflight
-from waterair.core.process import imports_done
+from waterair.core.process import set_up_process
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="evaluate")
@@ -28,6 +28,6 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
-    imports_done()
+    set_up_process()
     preflight("evaluate", sys.argv[1:], evaluation.check)
     main()

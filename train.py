@@ -9,7 +9,7 @@ import gc
 import sys
 
 if __name__ == "__main__":
-    gc.disable()  # until the imports are done (waterair.core.process)
+    gc.disable()  # until the imports are done (waterair.core.process.set_up_process)
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -18,7 +18,7 @@ from omegaconf import DictConfig
 
 from waterair.cli import training
 from waterair.cli.preflight import preflight
-from waterair.core.process import imports_done
+from waterair.core.process import set_up_process
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="config")
@@ -30,6 +30,6 @@ def main(cfg: DictConfig) -> float:
 
 
 if __name__ == "__main__":
-    imports_done()
+    set_up_process()
     preflight("config", sys.argv[1:], training.check)
     main()

@@ -299,5 +299,8 @@ def main() -> int:
 
 
 if __name__ == "__main__":
+    from waterair.core.process import set_up_process
+
+    set_up_process()  # as train.py's process
     os.environ.setdefault("PYTHONUNBUFFERED", "1")
     sys.exit(main())

@@ -14,7 +14,7 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 import waterair.training.config  # noqa: F401  (registers the config's resolvers, as train.py's imports do)
-from waterair.core.process import imports_done
+from waterair.core.process import set_up_process
 from waterair.envs.config import EnvConfig
 from waterair.physics.channel import LinkGeometry
 from waterair.physics.surface import WaveSurface
@@ -46,9 +46,11 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtestloop(session):
     """Before the first test (in a worker, its tests collected; in ``-n``'s controlling process, before it hands
-    them out): what is alive is kept out of the garbage collector's walks and the collector is on again, as an
-    entry point does once its imports are done (waterair/core/process.py). The tests run as a user's code runs."""
-    imports_done()
+    them out): the process set up as an entry point sets up its own once its imports are done
+    (:func:`waterair.core.process.set_up_process`: the collector, the allocator, dynamo's recompile limits, the
+    inductor fix). The tests run as a user's command runs; tests/test_process.py checks that the library alone
+    changes none of it."""
+    set_up_process()
 
 
 def pytest_collection_modifyitems(items):

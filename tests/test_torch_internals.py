@@ -20,10 +20,11 @@ from torch._dynamo.testing import CompileCounter
 
 from tests.conftest import paper_physics
 from waterair.core import inductor
+from waterair.core.process import RECOMPILE_LIMIT, set_up_process
 from waterair.envs import stepper
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.sensors import TRACED_SETTINGS
-from waterair.envs.stepper import BATCH_SOURCES, MEMO_TYPES, RECOMPILE_LIMIT, varying_environments
+from waterair.envs.stepper import BATCH_SOURCES, MEMO_TYPES, varying_environments
 from waterair.physics.optics import traced
 from waterair.physics.surface import lattice_harmonic_sums
 
@@ -75,13 +76,15 @@ def test_dynamic_sources_make_the_step_inputs_batch_symbolic_and_nothing_else():
     assert frames(other, [(torch.ones(n),) for n in (3, 5, 7)]) == 2  # outside: torch's automatic dynamic shapes
 
 
-def test_the_recompile_limits_are_raised_where_the_step_is_compiled():
+def test_the_recompile_limits_are_raised_by_the_process_set_up_not_by_compiling_a_step():
     dynamo = torch._dynamo.config
     for key in ("recompile_limit", "accumulated_recompile_limit"):
-        assert isinstance(getattr(dynamo, key, None), int), f"torch._dynamo.config.{key} is gone (stepper.compiled)"
+        assert isinstance(getattr(dynamo, key, None), int), f"torch._dynamo.config.{key} is gone (set_up_process)"
     with dynamo.patch(recompile_limit=8, accumulated_recompile_limit=256):
         stepper.compiled.cache_clear()
         stepper.compiled("conclude")
+        assert (dynamo.recompile_limit, dynamo.accumulated_recompile_limit) == (8, 256)
+        assert set_up_process(off=("collector", "allocator", "inductor_fix"))["recompile_limits"]
         assert dynamo.recompile_limit == RECOMPILE_LIMIT and dynamo.accumulated_recompile_limit == 4 * RECOMPILE_LIMIT
     stepper.compiled.cache_clear()
 
@@ -268,7 +271,7 @@ def test_the_lattices_factors_are_written_once_and_their_products_summed_without
     surface = surface64(batch=3, seed=4, spectrum="elfouhaily", n_dir=8)
     centre, basis, grid, time, xy = random_lattices(3, 5, seed=4)
     torch._dynamo.reset()
-    compiled = inductor.torch_compile(lattice_harmonic_sums, dynamic=True)
+    compiled = torch.compile(lattice_harmonic_sums, dynamic=True)
     got, codes = run_and_get_code(compiled, surface.harmonics, centre, basis, grid, time, 2)
     expected = direct_sums(surface.harmonics, xy[..., 0], xy[..., 1], time)
     k = torch.sqrt(surface.kx**2 + surface.ky**2)
@@ -308,7 +311,7 @@ def test_an_extern_kernel_between_two_computations_compiles_them_as_c_functions_
     kernels = {}
     for cut in (False, True):
         torch._dynamo.reset()
-        compiled = inductor.torch_compile(computation, dynamic=True)
+        compiled = torch.compile(computation, dynamic=True)
         got, codes = run_and_get_code(compiled, values, cut)
         torch.testing.assert_close(got, computation(values, cut))
         kernels[cut] = len(re.findall(r"^cpp_fused\w* = async_compile", "\n".join(codes), flags=re.MULTILINE))

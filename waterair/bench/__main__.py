@@ -256,4 +256,7 @@ def _threads(text: str) -> int | str:
 
 
 if __name__ == "__main__":
+    from waterair.core.process import set_up_process
+
+    set_up_process()  # the benchmarks' process as train.py's and evaluate.py's
     raise SystemExit(main())

@@ -51,7 +51,7 @@ def seconds_in_fresh_python(code: str, args: list[str], cache: str, what: str) -
 
 COLLECTOR_OFF = "import gc; gc.disable(); "
 """How the program of a child that runs as an entry point starts: Python's garbage collector off until it has imported
-what it runs and calls :func:`~waterair.core.process.imports_done`, as train.py does."""
+what it runs and calls :func:`~waterair.core.process.set_up_process`, as train.py does."""
 
 
 def last_line_of_fresh_python(code: str, args: list[str], what: str, environ: dict[str, str] | None = None) -> str:

@@ -144,6 +144,7 @@ def compile_times(batch: int = 16) -> dict:
     """
     code = (
         "import time, torch; start = time.perf_counter(); "
+        "from waterair.core.process import set_up_process; set_up_process(); "  # as train.py's process
         "from waterair.envs.env import WaterAirEnv; "
         f"env = WaterAirEnv(num_envs={batch}, seed=0, compile_kernel=True); td = env.reset(); "
         f"env.step(td.set('action', torch.zeros({batch}, 4))); print(time.perf_counter() - start)"
@@ -246,6 +247,9 @@ def _label(r: dict) -> str:
 
 
 if __name__ == "__main__":
+    from waterair.core.process import set_up_process
+
+    set_up_process()  # as train.py's process
     batch_arg, solver_arg, compile_arg, device_arg, dtype_arg, channel_arg, sea_arg, lattice_arg = sys.argv[1:9]
     settings = (solver_arg, bool(int(compile_arg)), device_arg, dtype_arg, channel_arg, sea_arg, lattice_arg)
     print(json.dumps(worker(int(batch_arg), *settings)))

@@ -75,6 +75,7 @@ def cold_compile(overrides: list[str]) -> float:
     (empty) ``TORCHINDUCTOR_CACHE_DIR``: the evaluation's compile, as a first ``evaluate.py`` on a machine pays it."""
     code = (
         "import sys, time; start = time.perf_counter(); "
+        "from waterair.core.process import set_up_process; set_up_process(); "  # as evaluate.py's process
         "from hydra import compose, initialize_config_dir; "
         "from waterair.evaluation.runner import evaluate; "
         f"initialize_config_dir(config_dir={str(CONF)!r}, version_base='1.3'); "

@@ -49,7 +49,7 @@ import torch
 from waterair.bench.common import COLLECTOR_OFF, last_line_of_fresh_python
 from waterair.bench.sb3 import SB3Actor, installed, sb3_ddpg, sb3_ppo
 from waterair.bench.training import compose_training
-from waterair.core.process import imports_done
+from waterair.core.process import set_up_process
 from waterair.core.threads import choose_threads, torch_threads
 from waterair.evaluation.runner import compare_policies
 from waterair.evaluation.scenarios import Scenario
@@ -190,16 +190,16 @@ def run_pipeline(request: str) -> dict | None:
 
 
 def enter_child(kind: str) -> None:
-    """Import what the pipeline ``kind`` (``ours`` or ``sb3``) runs, then keep every object alive out of the garbage
-    collector's walks and turn it on (:func:`~waterair.core.process.imports_done`), as train.py does after its
-    imports: its full collections then walk only what the run makes (unfrozen, about one a run took 0.16-0.19 s on
-    either side). Stable-Baselines3's side gets the same, though its own scripts would not."""
+    """Import what the pipeline ``kind`` (``ours`` or ``sb3``) runs, then set the process up as train.py does after
+    its imports (:func:`~waterair.core.process.set_up_process`): every object alive kept out of the garbage
+    collector's walks, so that its full collections walk only what the run makes (unfrozen, about one a run took
+    0.16-0.19 s on either side). Stable-Baselines3's side gets the same, though its own scripts would not."""
     if kind == "ours":
         import waterair.evaluation.policies
         import waterair.training.loop  # noqa: F401
     elif installed():
         import stable_baselines3  # noqa: F401
-    imports_done()
+    set_up_process()
 
 
 def bench_quality(

@@ -42,7 +42,7 @@ from torch import nn
 
 from waterair.bench.common import COLLECTOR_OFF, last_line_of_fresh_python
 from waterair.bench.sb3 import sb3_ddpg
-from waterair.core.process import imports_done
+from waterair.core.process import set_up_process
 from waterair.core.threads import choose_threads, torch_threads
 from waterair.training.algorithms.ddpg import DDPG
 from waterair.training.algorithms.off_policy import TRANSITION_KEYS
@@ -234,11 +234,11 @@ def run_in_child(args: str) -> None:
 
     Collection and update seconds are the loop's own per-batch timings (``metrics.csv``); the first
     batch holds the compiles, if any. Its imports done, their objects are frozen, as train.py freezes its own
-    (:func:`~waterair.core.process.imports_done`; :func:`train_run` starts it with the collector off).
+    (:func:`~waterair.core.process.set_up_process`; :func:`train_run` starts it with the collector off).
     """
     from waterair.training.loop import train
 
-    imports_done()
+    set_up_process()
     request = json.loads(args)
     frames, overrides = request["frames"], request["overrides"]
     with tempfile.TemporaryDirectory() as run_dir:

@@ -8,7 +8,8 @@ becomes a serial loop over the B rows that opens an OpenMP thread team for each 
 The full channel's step had 18 such sums (of 3-vectors over a lattice's nodes): 18 × B thread teams a
 step. :func:`fix_parallel_depth` counts the steps by ceiling division, as
 torch's own later fix does (pytorch/pytorch#190928); a kernel whose outer loops really are short still
-shares its reduction. Measured in docs/benchmarks.md ("Channels", "A thread team per row"). The fix is part of
+shares its reduction. The entry points apply it (:func:`waterair.core.process.set_up_process`); the library's
+compiles do not. Measured in docs/benchmarks.md ("Channels", "A thread team per row"). The fix is part of
 the key of torch's compile cache (:func:`cache_key_pass`): graphs a machine compiled before it are compiled
 again, not loaded with their old loops.
 
@@ -34,19 +35,6 @@ def replaced_source_digest() -> str:
     current = cpp.LoopNest.max_parallel_depth
     source = inspect.getsource(inspect.unwrap(getattr(current, "replaced", current)))  # torch's, fixed or not
     return hashlib.sha256(source.encode()).hexdigest()[:16]
-
-
-def torch_compile(function, **options):
-    """``torch.compile(function, **options)`` with the code generator fixed first (:func:`fix_parallel_depth`) and
-    the process's freed memory kept for the graph's buffers (:func:`~waterair.core.process.keep_freed_memory`):
-    how every compile site of the package compiles."""
-    import torch
-
-    from waterair.core.process import keep_freed_memory
-
-    fix_parallel_depth()
-    keep_freed_memory()
-    return torch.compile(function, **options)
 
 
 @functools.cache

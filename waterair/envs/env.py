@@ -12,7 +12,6 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import EnvBase
 
 from waterair.core.devices import resolve_device
-from waterair.core.process import keep_freed_memory
 from waterair.envs import draws, kernel
 from waterair.envs.config import EnvConfig
 from waterair.envs.constants import StepConstants
@@ -85,8 +84,8 @@ class WaterAirEnv(EnvBase):
     path directions, ``tx_position``/``rx_position`` (m) and ``tilt``, the present tilt vectors
     (tx_vx, tx_vy, rx_vx, rx_vy) the gimbals were commanded to, for evaluation and the baselines,
     and ``base_tilt``, the residual base controller's tilts for the next action.
-    The simulator state lives on the device chosen at construction. Building one asks the C library to keep the
-    memory a step frees for the next step's buffers (:func:`~waterair.core.process.keep_freed_memory`).
+    The simulator state lives on the device chosen at construction. Building or stepping one changes nothing
+    outside it (what our entry points switch on for speed: :func:`~waterair.core.process.set_up_process`).
     """
 
     batch_locked = True
@@ -94,7 +93,6 @@ class WaterAirEnv(EnvBase):
     def __init__(self, config: EnvConfig | None = None, *, reward: Reward | None = None, **overrides):
         config = (config or EnvConfig()).replace(**overrides) if overrides else (config or EnvConfig())
         super().__init__(device=resolve_device(config.device), batch_size=torch.Size([config.num_envs]))
-        keep_freed_memory()
         self.config = config
         self.reward_fn = reward or Reward()
         self.sea, self.link, self.channel = config.sea, config.geometry, config.channel_model()

@@ -18,7 +18,6 @@ from collections.abc import Iterator
 import torch
 from tensordict import TensorDict, is_tensorclass
 
-from waterair.core.inductor import torch_compile
 from waterair.envs import kernel
 from waterair.envs.constants import StepConstants
 from waterair.envs.state import StepResult, StepState
@@ -27,11 +26,6 @@ from waterair.physics.paths import FixedNewtonOptions, Iterate, PathProblem, Pat
 from waterair.physics.paths.fixed import finish_unconverged
 from waterair.physics.surface import WaveSurface
 
-RECOMPILE_LIMIT = 128
-"""Graphs torch may compile per kernel function in one process. Every environment configuration is a graph of
-its own (the guards are on it), and torch's default limit of 8 is reached by one evaluation (a group of
-policies per step, each on more than one batch): past it torch runs the step eagerly, 15×
-slower on the full channel, after a wall of warnings."""
 FINISH_ITERATIONS = 8
 """Masked Newton iterations of the links a step's fixed-iteration solve leaves unconverged."""
 DENSE_FINISH_BATCH = 64
@@ -71,13 +65,12 @@ def varying_environments() -> Iterator[None]:
 
 @functools.cache
 def compiled(name: str):
-    """``torch.compile`` of the kernel function ``name`` (``step``, ``finish`` or ``conclude``)."""
-    dynamo = torch._dynamo.config
-    dynamo.recompile_limit = max(dynamo.recompile_limit, RECOMPILE_LIMIT)
-    dynamo.accumulated_recompile_limit = max(dynamo.accumulated_recompile_limit, 4 * RECOMPILE_LIMIT)
+    """``torch.compile`` of the kernel function ``name`` (``step``, ``finish`` or ``conclude``). How many graphs
+    a process may compile of it is torch's limit, raised by our entry points
+    (:data:`waterair.core.process.RECOMPILE_LIMIT`)."""
     for kind in MEMO_TYPES:  # see MEMO_TYPES
         is_tensorclass(kind)
-    return torch_compile(getattr(kernel, name))
+    return torch.compile(getattr(kernel, name))
 
 
 class Stepper:

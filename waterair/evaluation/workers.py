@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import torch
 
-from waterair.core.process import imports_done
+from waterair.core.process import set_up_process
 from waterair.core.threads import AUTO, check_threads, choose_threads, given_cpus
 from waterair.envs.config import EnvConfig
 from waterair.envs.stepper import varying_environments
@@ -128,10 +128,11 @@ def run_batches(batches: Sequence[Batch], workers: int, threads: int, progress: 
 
 def _start_process(threads: int) -> None:
     """A batches' process: ``threads`` torch threads; Ctrl-C is left to the evaluation's process, which ends it.
-    Its imports are done (unpickling this function imported this module): their objects are frozen."""
+    Its imports are done (unpickling this function imported this module): it is set up as the entry points set up
+    theirs (:func:`~waterair.core.process.set_up_process`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     torch.set_num_threads(threads)
-    imports_done()
+    set_up_process()
 
 
 def _run_indexed(item: tuple[int, Batch]) -> tuple[int, tuple[dict, list[str]]]:

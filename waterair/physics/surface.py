@@ -21,7 +21,6 @@ import torch
 from tensordict import TensorClass
 
 from waterair.core.extern import written
-from waterair.core.inductor import torch_compile
 from waterair.core.validation import check_int
 from waterair.physics.sea import SeaState
 from waterair.physics.sea.slopes import rotated_covariance
@@ -264,7 +263,7 @@ def compiled_harmonic_sums():
     ~30-60 s per process. Shapes are dynamic, so batch-size changes do not recompile. Asking for
     it changes nothing for callers that evaluate eagerly.
     """
-    return torch_compile(harmonic_sums, dynamic=True)
+    return torch.compile(harmonic_sums, dynamic=True)
 
 
 class WaveSurface(TensorClass):

@@ -19,7 +19,6 @@ from dataclasses import dataclass, replace
 
 import torch
 
-from waterair.core.inductor import torch_compile
 from waterair.core.validation import check_int
 from waterair.physics.paths.newton import (
     NewtonOptions,
@@ -97,7 +96,7 @@ def fixed_newton_terms(sea: Harmonics, xy, t, tx, rx, n_w: float, n_a: float, op
 @functools.cache
 def compiled_fixed_newton():
     """``torch.compile(fixed_newton_terms)``, built on first use and shared."""
-    return torch_compile(fixed_newton_terms, dynamic=True)
+    return torch.compile(fixed_newton_terms, dynamic=True)
 
 
 def solve_newton_fixed(problem: PathProblem, init, opts: FixedNewtonOptions, compiled: bool = False) -> PathSolution:

@@ -18,7 +18,6 @@ from typing import NamedTuple
 
 import torch
 
-from waterair.core.inductor import torch_compile
 from waterair.core.validation import check_int, check_range
 from waterair.physics.paths.solution import Iterate, PathProblem, PathSolution
 from waterair.physics.surface import Harmonics, harmonic_sums
@@ -137,7 +136,7 @@ def fermat_terms(sea: Harmonics, xy, t, tx, rx, n_w: float, n_a: float) -> Ferma
 
 @functools.cache
 def _compiled_fermat():
-    return torch_compile(fermat_terms, dynamic=True)
+    return torch.compile(fermat_terms, dynamic=True)
 
 
 def newton_direction(hess, grad, point, tx, rx, n_w, n_a, max_step: float) -> torch.Tensor:

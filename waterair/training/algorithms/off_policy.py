@@ -19,7 +19,6 @@ from torchrl.modules import AdditiveGaussianModule, OrnsteinUhlenbeckProcessModu
 from torchrl.objectives import LossModule, SoftUpdate
 
 from waterair.agents.networks import make_critic
-from waterair.core.inductor import torch_compile
 from waterair.core.validation import check_range
 from waterair.training.algorithms.base import Algorithm, Counters, Learn, Update, adam, updates_per_batch
 
@@ -156,7 +155,7 @@ class OffPolicy(Algorithm):
             # turns a whole batch of these into numbers once.
             return torch.stack((actor_loss, value_loss)).detach()
 
-        return torch_compile(update) if self.cfg.compile_update else update
+        return torch.compile(update) if self.cfg.compile_update else update
 
     def make_learn(self, loss, update: Update, buffer, noise) -> Learn:
         """Anneal the noise, store the batch's transitions, then take ``collector.updates_per_frame`` × its

@@ -17,7 +17,6 @@ from torchrl.modules import ValueOperator
 from torchrl.objectives import ValueEstimators
 
 from waterair.agents.networks import make_gaussian_policy, make_value
-from waterair.core.inductor import torch_compile
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.training.algorithms.base import Algorithm, Counters, Learn, Update, adam, updates_per_batch
 
@@ -101,7 +100,7 @@ class PPO(Algorithm):
             kl = losses["kl_approx"].mean()  # how far this minibatch's policy moved from the collecting one
             return torch.stack((losses["loss_objective"], losses["loss_critic"], kl)).detach()
 
-        return torch_compile(update) if self.cfg.compile_update else update
+        return torch.compile(update) if self.cfg.compile_update else update
 
     def make_learn(self, loss, update: Update, buffer: TensorDictReplayBuffer, noise) -> Learn:
         """Passes over the batch alone, ``frames_per_batch // batch_size`` minibatches each, as many as
