@@ -25,6 +25,7 @@ import torch
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
 from waterair.envs.constants import Actions, StepConstants
 from waterair.envs.sensors import (
+    SensorNoise,
     back_projection,
     beacon_pointing,
     intensity_feature,
@@ -286,7 +287,7 @@ def conclude(
     return StepResult(new, outputs, moved, solution)
 
 
-def step(c: StepConstants, state: StepState, action: torch.Tensor, noise: torch.Tensor | None) -> StepResult:
+def step(c: StepConstants, state: StepState, action: torch.Tensor, noise: SensorNoise | None) -> StepResult:
     """One step of every link: the new state, its outputs, the gimbals ``moved`` and the path solve.
 
     The solve is returned for finishing the links that have not converged

@@ -18,7 +18,7 @@ import math
 from collections.abc import Sequence
 from copy import copy as shallow_copy
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import torch
 
@@ -161,6 +161,20 @@ class SensorSettings:
     beacon_threshold: float = 0.0
 
 
+class SensorNoise(NamedTuple):
+    """One reading's standard normal draws (:meth:`Sensor.draw`), by the noise they feed; a source that is off
+    reads zeros."""
+
+    intensity_relative: torch.Tensor
+    """``[n]``: the intensity's relative noise, σ_rel."""
+    intensity_floor: torch.Tensor
+    """``[n]``: its additive floor, σ_floor."""
+    spot: torch.Tensor
+    """``[n, 2]``: the spot reading's two components."""
+    beacon: torch.Tensor
+    """``[n, 2]``: the beacon reading's two components."""
+
+
 class Sensor:
     """The sensor settings of one environment and the readings they turn true values into.
 
@@ -242,55 +256,56 @@ class Sensor:
         copy.replicas = None  # one value per row: read as they are
         return copy
 
-    def draw(self, keys: torch.Tensor, dtype: torch.dtype, device: torch.device) -> torch.Tensor | None:
-        """Standard normal draws ``[n, 6]`` for one reading of the links of stream ``keys`` ``[n]`` (CPU int64,
+    def draw(self, keys: torch.Tensor, dtype: torch.dtype, device: torch.device) -> SensorNoise | None:
+        """Standard normal draws for one reading of the links of stream ``keys`` ``[n]`` (CPU int64,
         :func:`waterair.envs.noise.stream_keys`), or None if noiseless.
 
-        Columns 0-1 feed the intensity noise, 2-3 the spot noise, 4-5 the beacon reading's; a source that is off
-        reads zeros. One nonce is drawn from the generator per reading, so a link's noise depends on its key and
-        the reading's count alone.
+        Six a link, one stream (the intensity's two, the spot's two, the beacon's two, in this order, whichever
+        are on); a source that is off reads zeros. One nonce is drawn from the generator per reading, so a link's
+        noise depends on its key and the reading's count alone.
         """
         if not (self.noisy_intensity or self.noisy_spot or self.noisy_beacon):
             return None
-        draws = normals(keys, draw_nonce(self.generator), 6)
-        return torch.where(self._noise_on, draws, 0.0).to(device=device, dtype=dtype)
+        draws = torch.where(self._noise_on, normals(keys, draw_nonce(self.generator), 6), 0.0)
+        relative, floor, spot, beacon = draws.to(device=device, dtype=dtype).split((1, 1, 2, 2), dim=-1)
+        return SensorNoise(relative.squeeze(-1), floor.squeeze(-1), spot, beacon)
 
-    def intensity(self, true: torch.Tensor, noise: torch.Tensor | None) -> torch.Tensor:
+    def intensity(self, true: torch.Tensor, noise: SensorNoise | None) -> torch.Tensor:
         """Measured intensity ``[n]``: I (1 + σ_rel n1) + σ_floor n2, clipped to [0, saturation]."""
         measured = true
         if self.noisy_intensity and noise is not None:
             relative, floor = per_link(self.intensity_noise, true), per_link(self.intensity_noise_floor, true)
-            measured = (true * (1.0 + relative * noise[:, 0]) + floor * noise[:, 1]).clamp(min=0.0)
+            measured = true * (1.0 + relative * noise.intensity_relative) + floor * noise.intensity_floor
+            measured = measured.clamp(min=0.0)
         if isinstance(self.intensity_saturation, torch.Tensor):  # per row (no saturation: +inf)
             measured = torch.minimum(measured, per_link(self.intensity_saturation, measured))
         elif self.intensity_saturation is not None:
             measured = measured.clamp(max=self.intensity_saturation)
         return measured
 
-    def spot(self, true: torch.Tensor, lit: torch.Tensor, measured_intensity: torch.Tensor, noise):
+    def spot(self, true: torch.Tensor, lit: torch.Tensor, measured_intensity: torch.Tensor, noise: SensorNoise | None):
         """Spot reading ``[n, 2]`` and its validity ``[n]`` (float 0/1): noisy where light is seen, else 0."""
         return _gated(
             true,
             lit & (measured_intensity >= per_link(self.spot_threshold, measured_intensity)),
             self.noisy_spot,
             self.spot_noise,
-            noise,
-            2,
+            None if noise is None else noise.spot,
         )
 
-    def beacon(self, true: torch.Tensor, lit: torch.Tensor, intensity: torch.Tensor, noise):
+    def beacon(self, true: torch.Tensor, lit: torch.Tensor, intensity: torch.Tensor, noise: SensorNoise | None):
         """Beacon reading ``[n, 2]`` and its validity ``[n]`` (float 0/1) at the transmitter: the true reading
         ``[n, 2]`` plus noise where the beacon's light is seen (``lit``) at ``intensity`` (G_B over its calm-sea
         value) at or above the threshold, else 0."""
         seen = lit & (intensity >= per_link(self.beacon_threshold, intensity))  # compared in the readings' dtype
-        return _gated(true, seen, self.noisy_beacon, self.beacon_noise, noise, 4)
+        return _gated(true, seen, self.noisy_beacon, self.beacon_noise, None if noise is None else noise.beacon)
 
 
-def _gated(true: torch.Tensor, valid: torch.Tensor, noisy: bool, scale: Scalar, noise, column: int):
-    """A detector's reading ``[n, 2]`` and its validity ``[n]`` (float 0/1): ``true`` plus ``scale`` times the noise
-    columns ``column``, ``column + 1`` where the detector is ``noisy`` and a draw is given, 0 where not ``valid``."""
+def _gated(true: torch.Tensor, valid: torch.Tensor, noisy: bool, scale: Scalar, noise: torch.Tensor | None):
+    """A detector's reading ``[n, 2]`` and its validity ``[n]`` (float 0/1): ``true`` plus ``scale`` times its
+    ``noise`` ``[n, 2]`` where the detector is ``noisy`` and a draw is given, 0 where not ``valid``."""
     reading = true
     if noisy and noise is not None:
-        reading = true + per_link(scale, true) * noise[:, column : column + 2]
+        reading = true + per_link(scale, true) * noise
     reading = torch.where(valid.unsqueeze(-1), reading, torch.zeros_like(reading))
     return reading, valid.to(true.dtype)
