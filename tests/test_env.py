@@ -96,6 +96,24 @@ def test_partial_reset_changes_exactly_the_masked_links():
     assert not out["done"].any()
 
 
+def test_a_reset_row_and_a_stepped_row_are_recorded_by_the_same_function(monkeypatch):
+    """The reset and the step go through kernel.record (the readings, the measurement, the stored warm start): a
+    reset of some rows records those rows only, and writes every entry of their state (StepState.write_rows)."""
+    from waterair.envs import kernel
+
+    recorded, real = [], kernel.record
+    monkeypatch.setattr(kernel, "record", lambda c, tilts, *args, **kw: recorded.append(len(tilts[0])) or real(
+        c, tilts, *args, **kw))  # fmt: skip
+    env = small_env(num_envs=6, intensity_noise=0.05, latency_steps=1)
+    td = env.reset()
+    td = env.step(td.set("action", torch.zeros(6, 4)))["next"]
+    env.reset(td.clone().set("_reset", torch.tensor([False, True, False, False, True, False]).unsqueeze(-1)))
+    assert recorded == [6, 6, 6, 2]  # built (all rows), reset (all), a step (all), two rows reset
+    assert (env.state.steps == torch.tensor([1, 0, 1, 1, 0, 1])).all()
+    assert (env.state.packets[[1, 4], 0] == env.state.packets[[1, 4], 1]).all()  # the first packet in every slot
+    assert (env.state.time[[1, 4]] == 0).all() and (env.state.tx_tilt[[1, 4]] == 0).all()
+
+
 def test_same_seed_same_rollout_different_seed_differs():
     def run(seed):
         env = small_env(num_envs=3)

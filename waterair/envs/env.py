@@ -20,9 +20,8 @@ from waterair.envs.noise import stream_keys
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import Sensor, SensorSettings
 from waterair.envs.specs import make_specs
-from waterair.envs.state import Measurement, StepState, Tilts
+from waterair.envs.state import Measurement, StepState
 from waterair.envs.stepper import Stepper
-from waterair.physics.channel import LinkEnds, pointing
 from waterair.physics.paths import flat_sea_point, solve_path
 from waterair.physics.surface import WaveSurface
 
@@ -283,7 +282,8 @@ class WaterAirEnv(EnvBase):
         return torch.cat((self.state.tx_tilt, self.state.rx_tilt), dim=-1)
 
     def _reset_rows(self, rows: torch.Tensor) -> None:
-        """New seas, geometry, pointing and a cold path solve for ``rows`` (``[n]`` indices)."""
+        """New seas, geometry and a cold path solve for ``rows`` (``[n]`` indices), drawn here; the state they start
+        from recorded as a step records it (:func:`kernel.start`), written into the rows whatever its entries."""
         config, dtype = self.config, self.float_dtype
         distinct, copy = draws.distinct_links(config, rows)
         wind, direction = draws.sea_conditions(config, distinct, self._generator)
@@ -305,47 +305,30 @@ class WaterAirEnv(EnvBase):
         reference = self.channel.reference_gain(tx.double(), rx.double()).to(dtype)
         prepared = constants.channel.prepare(tx, rx, self.surface.unresolved[rows])
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)
-        zero = torch.zeros(rows.numel(), device=self.device, dtype=dtype)
+        seas = self.surface[rows]
+        at_rest = StepState.zeros(seas.harmonics, prepared, config.history_length, self.sensor.longest_latency)
+        links = replace(
+            at_rest,
+            tx_position=tx,
+            rx_position=rx,
+            divergence=divergence,
+            flat_point=flat,
+            reference_gain=reference,
+            prepared=prepared,
+        )
         path = solve_path(
-            self.surface[rows],
+            seas,
             tx,
             rx,
-            zero,
+            links.time,
             config.solver,
             init=flat[:, :2],
             indices=self.optics.indices,
-            compiled=self.config.compile_kernel,
+            compiled=config.compile_kernel,
         )
-        upright = torch.zeros(rows.numel(), 2, device=self.device, dtype=dtype)
-        tilts = Tilts(upright, upright)
         noise = self.sensor.draw(self._noise_keys[rows.cpu()], dtype, self.device)
-        ends = LinkEnds(tx, rx, flat, pointing(upright, up=True))
-        light = self.stepper.reset_light(self.surface[rows], ends, prepared, path, zero, constants.channel)
-        measurement, readings, stored, _, feature = kernel.record(constants, tilts, path, light, reference, flat, noise)
-        no_history = torch.zeros(rows.numel(), config.history_length, device=self.device, dtype=dtype)
-        packed = kernel.pack(readings, no_history)  # a reset has no older packet: it fills every slot
-        updates = {
-            "time": zero,
-            "steps": 0,
-            "tx_tilt": 0.0,
-            "rx_tilt": 0.0,
-            "tx_position": tx,
-            "rx_position": rx,
-            "divergence": divergence,
-            "point": stored,
-            "previous_point": stored,
-            "flat_point": flat,
-            "reference_gain": reference,
-            "history": 0.0,
-            "last_feature": feature,
-            "action_history": 0.0,
-            "packets": packed.unsqueeze(1),
-        }
-        entries = self.state.tensors()
-        for key, value in updates.items():
-            entries[key][rows] = value
-        for key, value in prepared.items():
-            self.state.prepared[key][rows] = value
+        started, measurement = kernel.start(constants, links, path, noise, self.stepper.generator)
+        self.state.write_rows(rows, started)
         for mine, value in zip(self.measurement, measurement, strict=True):
             mine[rows] = value
 

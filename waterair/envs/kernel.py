@@ -18,6 +18,7 @@ keeps state.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import NamedTuple
 
 import torch
@@ -156,13 +157,20 @@ def solve(
 
 
 def channel_light(
-    c: StepConstants, state: StepState, path: PathSolution, moved: Moved, generator: torch.Generator | None = None
+    c: StepConstants,
+    state: StepState,
+    path: PathSolution,
+    moved: Moved,
+    generator: torch.Generator | None = None,
+    copies: int | None = None,
 ) -> LightSamples:
     """The channel's light for the links of ``state`` (their seas, ends and the channel's per-episode
-    constants) through the tracked ``path``, at the time and transmitter pointing of the gimbals ``moved``."""
+    constants) through the tracked ``path``, at the time and transmitter pointing of the gimbals ``moved``;
+    ``copies`` as :func:`record`'s (default ``c.replicas``)."""
     tx_dir = pointing(moved.tx_tilt, up=True)
     ends = LinkEnds(state.tx_position, state.rx_position, state.flat_point, tx_dir)
-    return c.channel.light(state.sea, path, ends, moved.time, state.prepared, generator, copies=c.replicas)
+    copies = c.replicas if copies is None else copies
+    return c.channel.light(state.sea, path, ends, moved.time, state.prepared, generator, copies=copies)
 
 
 def record(
@@ -285,6 +293,23 @@ def conclude(
         base_tilt=base_tilts(c, new),
     )
     return StepResult(new, outputs, moved, solution)
+
+
+def start(
+    c: StepConstants, links: StepState, path: PathSolution, noise: SensorNoise | None, generator=None
+) -> tuple[StepState, Measurement]:
+    """Links at their reset: the state they start from and its measurement, recorded as a step records
+    (:func:`record`). ``links`` is their state with its seas, ends, ω_D, calm-sea point, G_0 and the channel's
+    constants set and the rest zeros (at rest: t = 0, both ends upright, no history); ``path`` their cold path
+    solve at t = 0. The first packet fills every slot in flight (a reset has no older one); ``generator``: a
+    channel's that draws (the Monte Carlo tracer)."""
+    resting = Moved(links.tx_tilt, links.rx_tilt, links.action_history, links.time, links.steps)
+    light = channel_light(c, links, path, resting, generator, copies=1)
+    measurement, readings, stored, _, feature = record(
+        c, resting.tilts, path, light, links.reference_gain, links.flat_point, noise
+    )
+    packets = pack(readings, links.history).unsqueeze(1).expand_as(links.packets)
+    return replace(links, point=stored, previous_point=stored, last_feature=feature, packets=packets), measurement
 
 
 def step(c: StepConstants, state: StepState, action: torch.Tensor, noise: SensorNoise | None) -> StepResult:

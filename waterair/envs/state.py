@@ -127,11 +127,16 @@ class StepState:
             **changes,
         )
 
-    def tensors(self) -> dict[str, torch.Tensor]:
-        """The per-link entries by name (the seas and the channel's constants left out), for writing rows in place."""
-        return {
-            field.name: getattr(self, field.name) for field in fields(self) if field.name not in ("sea", "prepared")
-        }
+    def write_rows(self, rows: torch.Tensor, links: StepState) -> None:
+        """Write the state of ``links`` into the rows ``rows`` ``[n]`` of this one, in place: every entry, the
+        channel's constants included, but the seas (the environment's surface holds them)."""
+        for field in fields(self):
+            mine, theirs = getattr(self, field.name), getattr(links, field.name)
+            if field.name == "prepared":
+                for key, value in theirs.items():
+                    mine[key][rows] = value
+            elif field.name != "sea":
+                mine[rows] = theirs
 
 
 class Readings(NamedTuple):

@@ -21,7 +21,6 @@ from tensordict import TensorDict, is_tensorclass
 from waterair.envs import kernel
 from waterair.envs.constants import StepConstants
 from waterair.envs.state import StepResult, StepState
-from waterair.physics.channel import ChannelModel, LightSamples, LinkEnds
 from waterair.physics.paths import FixedNewtonOptions, Iterate, PathProblem, PathSolution, finish_path, solve_path
 from waterair.physics.paths.fixed import finish_unconverged
 from waterair.physics.surface import WaveSurface
@@ -130,19 +129,6 @@ class Stepper:
         if not c.channel.needs_exact_point or bool(result.solution.converged.all()):  # the step's one host sync
             return result
         return self._finish_paths(surface, state, result, noise)
-
-    def reset_light(
-        self,
-        surface: WaveSurface,
-        ends: LinkEnds,
-        prepared: dict,
-        path: PathSolution,
-        time: torch.Tensor,
-        channel: ChannelModel,
-    ) -> LightSamples:
-        """The light of freshly reset links (their ``surface`` rows, ``ends`` and the ``channel``'s ``prepared``
-        constants; the channel with their divergences, :meth:`StepConstants.for_links`), eagerly."""
-        return channel.light(surface.harmonics, path, ends, time, prepared, self.generator)
 
     def _finish_paths(self, surface: WaveSurface, state: StepState, result: StepResult, noise) -> StepResult:
         """Finish the links whose fixed-iteration solve of the step ``result`` has not converged, then conclude the
