@@ -1,10 +1,10 @@
 """Runs the environment step (:mod:`waterair.envs.kernel`): compiled or eager, and finishes slow paths.
 
-:class:`Stepper` calls the one-graph step, and in the rare case that some link's fixed-iteration
-path solve has not converged, continues those links and concludes the step again (only where the
-channel needs the exact point: the two-scale lattice merely centres on it); with the ``centroid``
-solver it solves eagerly and concludes in the graph; a channel whose light does not compile (the
-Monte Carlo tracer) gets it eagerly, with the environment's generator.
+:class:`Stepper` runs the step's stages (advance, solve, light, conclude) as the one-graph step, or, where the
+``centroid`` solver or a channel whose light does not compile (the Monte Carlo tracer, with the environment's
+generator) takes a stage out of the graph, the same stages with that one eager. In the rare case that some
+link's fixed-iteration path solve has not converged, it continues those links and concludes the step again
+(only where the channel needs the exact point: the two-scale lattice merely centres on it).
 Compiled functions are built on first use and shared by every environment in the process
 (``torch.compile`` guards on the configuration, so environments that differ get graphs of their own).
 """
@@ -20,7 +20,8 @@ from tensordict import TensorDict, is_tensorclass
 
 from waterair.envs import kernel
 from waterair.envs.constants import StepConstants
-from waterair.envs.state import StepResult, StepState
+from waterair.envs.state import Moved, StepResult, StepState
+from waterair.physics.channel import LightSamples
 from waterair.physics.paths import FixedNewtonOptions, Iterate, PathProblem, PathSolution, finish_path, solve_path
 from waterair.physics.paths.fixed import finish_unconverged
 from waterair.physics.surface import WaveSurface
@@ -74,7 +75,13 @@ def compiled(name: str):
 
 class Stepper:
     """The step of one environment: ``constants``, its solver, whether to run compiled, and the
-    generator of a channel that draws random numbers (the Monte Carlo tracer)."""
+    generator of a channel that draws random numbers (the Monte Carlo tracer).
+
+    A step is one sequence of kernel functions: advance the gimbals, solve the path, the channel's light,
+    conclude (:func:`kernel.step` runs them as one graph). Where a stage cannot run in that graph it runs on its
+    own, eagerly, and the others around it as they would: the ``centroid`` solver's solve, and the light of a
+    channel that does not compile (with the environment's generator). Which stages, and compiled or eager, is
+    decided here, once."""
 
     def __init__(
         self,
@@ -86,12 +93,14 @@ class Stepper:
         *,
         dtype: torch.dtype,
     ):
-        self.constants, self.solver, self.compile_kernel = constants, solver, compile_kernel
-        self.generator = generator
-        pick = compiled if compile_kernel else functools.partial(getattr, kernel)
+        self.constants, self.solver, self.generator = constants, solver, generator
+        self.compile_kernel = compile_kernel and constants.channel.compiles
+        pick = compiled if self.compile_kernel else functools.partial(getattr, kernel)
         self._step, self._finish, self._conclude = pick("step"), pick("finish"), pick("conclude")
         # what the compiled functions get: the numbers that vary between environments as tensors (one graph)
-        self.traced = constants.traced(torch.device(device), dtype) if compile_kernel else constants
+        self.traced = constants.traced(torch.device(device), dtype) if self.compile_kernel else constants
+        self._eager_solve = self._centroid_solve if solver == "centroid" else None
+        self._eager_light = None if constants.channel.compiles else self._drawn_light
         self.finishing = FixedNewtonOptions(
             iterations=FINISH_ITERATIONS,
             tol=constants.tolerance,
@@ -102,33 +111,40 @@ class Stepper:
     def __call__(self, surface: WaveSurface, state: StepState, action: torch.Tensor, noise) -> StepResult:
         """One step of the links of ``state`` (whose seas are ``surface``'s)."""
         c = self.constants
-        if not c.channel.compiles:
-            c = c.for_links(state.divergence)
+        if self._eager_solve is None and self._eager_light is None:
+            result = self._step(self.traced, state, action, noise)  # every stage in one graph
+        else:
             moved = kernel.advance(c, state, action)
-            solution = kernel.solve(c, state, moved.time)
-            n_w, n_a = c.optics.n_water, c.optics.n_air
-            path = _path(solution, state, n_w, n_a)
-            light = kernel.channel_light(c, state, path, moved, self.generator)
-            return kernel.conclude(c, state, moved, solution, noise, light)
-        if self.solver == "centroid":
-            moved = kernel.advance(c, state, action)
-            path = solve_path(
-                surface,
-                state.tx_position,
-                state.rx_position,
-                moved.time,
-                "centroid",
-                init=state.point[:, :2],
-                indices=c.optics.indices,
-                compiled=self.compile_kernel,
-            )
-            slope = -path.normal[:, :2] / path.normal[:, 2:]
-            solution = Iterate(path.point, slope, path.point[:, :2], path.valid, path.iterations)
-            return self._conclude(self.traced, state, moved, solution, noise)
-        result = self._step(self.traced, state, action, noise)
-        if not c.channel.needs_exact_point or bool(result.solution.converged.all()):  # the step's one host sync
+            solve = self._eager_solve or (lambda surface, state, moved: kernel.solve(c, state, moved.time))
+            solution = solve(surface, state, moved)
+            light = None if self._eager_light is None else self._eager_light(state, moved, solution)
+            result = self._conclude(self.traced, state, moved, solution, noise, light)
+        if self._eager_solve is not None or not c.channel.needs_exact_point:
+            return result
+        if bool(result.solution.converged.all()):  # the step's one host sync
             return result
         return self._finish_paths(surface, state, result, noise)
+
+    def _centroid_solve(self, surface: WaveSurface, state: StepState, moved: Moved) -> Iterate:
+        """The paper's centroid solve of the step's path, eagerly, from the last path point."""
+        path = solve_path(
+            surface,
+            state.tx_position,
+            state.rx_position,
+            moved.time,
+            "centroid",
+            init=state.point[:, :2],
+            indices=self.constants.optics.indices,
+            compiled=self.compile_kernel,
+        )
+        slope = -path.normal[:, :2] / path.normal[:, 2:]
+        return Iterate(path.point, slope, path.point[:, :2], path.valid, path.iterations)
+
+    def _drawn_light(self, state: StepState, moved: Moved, solution: Iterate) -> LightSamples:
+        """The light of a channel that does not compile (it draws, from :attr:`generator`), eagerly."""
+        c = self.constants.for_links(state.divergence)
+        path = _path(solution, state, c.optics.n_water, c.optics.n_air)
+        return kernel.channel_light(c, state, path, moved, self.generator)
 
     def _finish_paths(self, surface: WaveSurface, state: StepState, result: StepResult, noise) -> StepResult:
         """Finish the links whose fixed-iteration solve of the step ``result`` has not converged, then conclude the
