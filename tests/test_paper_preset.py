@@ -51,7 +51,7 @@ def physics_rollout(surface, actions):
         first = FixedNewtonOptions(iterations=PAPER["newton_iterations"])
         stop = iterate_fixed(problem, guess, first, False)
         stop = finish_unconverged(problem, stop, FixedNewtonOptions(iterations=FINISH_ITERATIONS), False)
-        path = finish_path(stop.point, stop.slope, tx, rx, stop.converged, stop.iterations, n_w, n_a)
+        path = finish_path(stop, tx, rx, RefractiveIndices(n_w, n_a))
         tx_dir = pointing(action[:, :2] * PAPER["max_tilt"], up=True)
         rx_dir = pointing(action[:, 2:] * PAPER["max_tilt"], up=False)
         gain = channel_gain(path, tx_dir, rx_dir, optics)

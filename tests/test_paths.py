@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from waterair.physics.channel import LinkGeometry
+from waterair.physics.optics import RefractiveIndices
 from waterair.physics.paths import CentroidOptions, FixedNewtonOptions, NewtonOptions, solve_path
 from waterair.physics.sea import sea_state
 from waterair.physics.surface import WaveSurface
@@ -175,7 +176,8 @@ def test_a_compiled_path_kernel_keeps_one_graph_for_every_working_set(kernel, mo
 
     counter = CompileCounter()
     function = newton.fermat_terms if kernel == "fermat" else fixed.fixed_newton_terms
-    settings = (N_W, N_A) if kernel == "fermat" else (N_W, N_A, FixedNewtonOptions(iterations=2, tol=1e-10))
+    fixed_settings = (RefractiveIndices(N_W, N_A), FixedNewtonOptions(iterations=2, tol=1e-10))
+    settings = (N_W, N_A) if kernel == "fermat" else fixed_settings
     traced = torch.compile(function, dynamic=True, backend=counter)
     torch._dynamo.reset()
     surface = WaveSurface.sample(sea_state("jonswap", wind=12.0, n_freq=16, n_dir=8), 8, seed=2, dtype=torch.float64)

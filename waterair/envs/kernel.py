@@ -150,8 +150,7 @@ def solve(
         time,
         state.tx_position,
         state.rx_position,
-        c.optics.n_water,
-        c.optics.n_air,
+        c.optics.indices,
         c.solver if options is None else options,
     )
 
@@ -181,6 +180,7 @@ def record(
     reference_gain,
     flat_point,
     noise,
+    *,
     copies: int = 1,
 ) -> Record:
     """What a solved path and its ``light`` give: the true measurement, the sensor readings and the next warm
@@ -266,13 +266,12 @@ def conclude(
     """The new state and the step's outputs, given the gimbals ``moved`` and the path ``solution``. The
     channel's light is computed here unless it comes as ``light`` (a model that does not compile)."""
     c = c.for_links(state.divergence)
-    n_w, n_a = c.optics.n_water, c.optics.n_air
     tx, rx = state.tx_position, state.rx_position
-    path = finish_path(solution.point, solution.slope, tx, rx, solution.converged, solution.iterations, n_w, n_a)
+    path = finish_path(solution, tx, rx, c.optics.indices)
     if light is None:
         light = channel_light(c, state, path, moved)
     measurement, readings, stored, tracked, feature = record(
-        c, moved.tilts, path, light, state.reference_gain, state.flat_point, noise, c.replicas
+        c, moved.tilts, path, light, state.reference_gain, state.flat_point, noise, copies=c.replicas
     )
     history = torch.cat((state.last_feature.unsqueeze(-1), state.history[:, :-1]), dim=-1)
     packets = torch.cat((pack(readings, history).unsqueeze(1), state.packets[:, :-1]), dim=1)

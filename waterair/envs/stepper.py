@@ -22,7 +22,7 @@ from waterair.envs import kernel
 from waterair.envs.constants import StepConstants
 from waterair.envs.state import Moved, StepResult, StepState
 from waterair.physics.channel import LightSamples
-from waterair.physics.paths import FixedNewtonOptions, Iterate, PathProblem, PathSolution, finish_path, solve_path
+from waterair.physics.paths import FixedNewtonOptions, Iterate, PathProblem, finish_path, solve_path
 from waterair.physics.paths.fixed import finish_unconverged
 from waterair.physics.surface import WaveSurface
 
@@ -143,7 +143,7 @@ class Stepper:
     def _drawn_light(self, state: StepState, moved: Moved, solution: Iterate) -> LightSamples:
         """The light of a channel that does not compile (it draws, from :attr:`generator`), eagerly."""
         c = self.constants.for_links(state.divergence)
-        path = _path(solution, state, c.optics.n_water, c.optics.n_air)
+        path = finish_path(solution, state.tx_position, state.rx_position, c.optics.indices)
         return kernel.channel_light(c, state, path, moved, self.generator)
 
     def _finish_paths(self, surface: WaveSurface, state: StepState, result: StepResult, noise) -> StepResult:
@@ -164,9 +164,3 @@ class Stepper:
         problem = PathProblem(surface, state.tx_position, state.rx_position, moved.time, c.optics.indices)
         solution = finish_unconverged(problem, result.solution, self.finishing, self.compile_kernel)
         return self._conclude(self.traced, state, moved, solution, noise)
-
-
-def _path(solution: Iterate, state: StepState, n_w: float, n_a: float) -> PathSolution:
-    """The path through a solve's point, between the state's ends."""
-    tx, rx = state.tx_position, state.rx_position
-    return finish_path(solution.point, solution.slope, tx, rx, solution.converged, solution.iterations, n_w, n_a)

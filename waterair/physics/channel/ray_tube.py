@@ -63,8 +63,7 @@ class RayTube(ChannelModel):
         optics, xy = self.optics, path.point[:, :2]
         hessian = fermat_terms(sea, xy, time, ends.tx, ends.rx, optics.n_water, optics.n_air).hess
         third = directional_third_derivatives(sea, xy, time, hessian_eigenvectors(hessian))
-        slope = -path.normal[:, :2] / path.normal[:, 2:]
-        return ray_tube_light(path.point, slope, hessian, path.valid, ends.tx, ends.rx, optics, third)
+        return ray_tube_light(path, hessian, ends.tx, ends.rx, optics, third)
 
 
 def ray_tube_factor(
@@ -151,18 +150,18 @@ def calm_sea_reference(tx: torch.Tensor, rx: torch.Tensor, optics: Transceiver) 
 
 
 def ray_tube_light(
-    point: torch.Tensor,
-    slope: torch.Tensor,
+    path: PathSolution,
     hessian: torch.Tensor,
-    valid: torch.Tensor,
     tx: torch.Tensor,
     rx: torch.Tensor,
     optics: Transceiver,
     third: torch.Tensor | None = None,
 ) -> LightSamples:
-    """One refraction point per link as :class:`LightSamples` (N = 1): weight :func:`ray_tube_factor`
-    (0 where ``valid`` ``[B]`` is False), departure u1 and arrival u2. Arguments as for
-    :func:`ray_tube_factor`, each ``[B, ·]``; for a sea without unresolved slopes (docs/model.md §4.2)."""
+    """One refraction point per link, the ``path``'s, as :class:`LightSamples` (N = 1): weight
+    :func:`ray_tube_factor` (0 where the path is not valid), departure u1 and arrival u2. The other arguments
+    as for :func:`ray_tube_factor`, each ``[B, ·]``; for a sea without unresolved slopes (docs/model.md §4.2)."""
+    point, valid = path.point, path.valid
+    slope = -path.normal[:, :2] / path.normal[:, 2:]
     factor = ray_tube_factor(point, slope, hessian, tx, rx, optics, third)
     factor = torch.where(valid & torch.isfinite(factor), factor, torch.zeros_like(factor))
     d1, d2 = point - tx, rx - point

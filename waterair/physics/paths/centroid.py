@@ -9,7 +9,7 @@ import torch
 
 from waterair.core.validation import check_int, check_range
 from waterair.physics.optics import refract, unit_vector
-from waterair.physics.paths.solution import PathProblem, PathSolution, finish_path
+from waterair.physics.paths.solution import Iterate, PathProblem, PathSolution, finish_path
 
 
 @dataclass(frozen=True)
@@ -110,7 +110,7 @@ def solve_centroid(problem: PathProblem, init, opts: CentroidOptions, compiled: 
     miss = torch.sqrt(((to_tx**2).sum(-1) - along**2).clamp(min=0))
     converged = lit & hit_ok.squeeze(1) & ok & (along > 0) & (miss < opts.max_miss)
     slope = -normal[:, :2] / normal[:, 2:3]
-    return finish_path(point, slope, tx, rx, converged, passes, n_w, n_a)
+    return finish_path(Iterate(point, slope, point[:, :2], converged, passes), tx, rx, problem.indices)
 
 
 def _intersect(surface, origin, rays, t, reach, iterations, compiled: bool):

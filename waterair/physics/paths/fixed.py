@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 import torch
 
 from waterair.core.validation import check_int
+from waterair.physics.optics import RefractiveIndices
 from waterair.physics.paths.newton import (
     NewtonOptions,
     call_compiled,
@@ -59,12 +60,13 @@ class FixedNewtonOptions:
         return self.tol if self.tol is not None else (1e-11 if dtype == torch.float64 else 2e-5)
 
 
-def fixed_newton_terms(sea: Harmonics, xy, t, tx, rx, n_w: float, n_a: float, opts: FixedNewtonOptions) -> Iterate:
+def fixed_newton_terms(sea: Harmonics, xy, t, tx, rx, indices: RefractiveIndices, opts: FixedNewtonOptions) -> Iterate:
     """``opts.iterations`` masked Newton iterations from ``xy`` ``[m, 2]``; a pure tensor function.
 
-    Arguments as in :func:`waterair.physics.paths.newton.fermat_terms`, ``t`` ``[m]``; the convergence threshold
-    is ``opts.tolerance`` of ``xy``'s dtype.
+    Arguments as in :func:`waterair.physics.paths.newton.fermat_terms` (its ``n_w``, ``n_a`` the ``indices``),
+    ``t`` ``[m]``; the convergence threshold is ``opts.tolerance`` of ``xy``'s dtype.
     """
+    n_w, n_a = indices
     eps = torch.finfo(xy.dtype).eps
     tol, armijo, max_step = opts.tolerance(xy.dtype), opts.armijo, opts.max_step
     length, grad, hess, point, slope = fermat_terms(sea, xy, t, tx, rx, n_w, n_a)
@@ -73,7 +75,7 @@ def fixed_newton_terms(sea: Harmonics, xy, t, tx, rx, n_w: float, n_a: float, op
     taken = torch.zeros_like(length, dtype=torch.int64)
     for _ in range(opts.iterations):
         todo = ~done
-        step = newton_direction(hess, grad, point, tx, rx, n_w, n_a, max_step) * (fraction * todo).unsqueeze(-1)
+        step = newton_direction(hess, grad, point, tx, rx, indices, max_step) * (fraction * todo).unsqueeze(-1)
         decrease = (grad * step).sum(-1)
         trial_xy = xy + step
         trial = fermat_terms(sea, trial_xy, t, tx, rx, n_w, n_a)
@@ -115,8 +117,8 @@ def iterate_fixed(problem: PathProblem, xy, opts: FixedNewtonOptions, compiled: 
     eagerly."""
     inputs = (xy, torch.as_tensor(problem.t), problem.tx, problem.rx)
     if not compiled:
-        return fixed_newton_terms(problem.surface.harmonics, *inputs, *problem.indices, opts)
-    return call_compiled(compiled_fixed_newton(), problem.surface.harmonics, inputs, *problem.indices, opts)
+        return fixed_newton_terms(problem.surface.harmonics, *inputs, problem.indices, opts)
+    return call_compiled(compiled_fixed_newton(), problem.surface.harmonics, inputs, problem.indices, opts)
 
 
 def finish_unconverged(problem: PathProblem, stop: Iterate, opts: FixedNewtonOptions, compiled: bool) -> Iterate:

@@ -19,6 +19,7 @@ from typing import NamedTuple
 import torch
 
 from waterair.core.validation import check_int, check_range
+from waterair.physics.optics import RefractiveIndices
 from waterair.physics.paths.solution import Iterate, PathProblem, PathSolution
 from waterair.physics.surface import Harmonics, harmonic_sums
 
@@ -139,11 +140,13 @@ def _compiled_fermat():
     return torch.compile(fermat_terms, dynamic=True)
 
 
-def newton_direction(hess, grad, point, tx, rx, n_w, n_a, max_step: float) -> torch.Tensor:
+def newton_direction(hess, grad, point, tx, rx, indices: RefractiveIndices, max_step: float) -> torch.Tensor:
     """Newton direction on a Hessian shifted to be positive definite, capped at ``max_step`` (m).
 
-    ``hess`` (L_xx, L_xy, L_yy) ``[m, 3]``, ``grad`` ``[m, 2]``, ``point`` P ``[m, 3]``; a pure tensor function.
+    ``hess`` (L_xx, L_xy, L_yy) ``[m, 3]``, ``grad`` ``[m, 2]``, ``point`` P ``[m, 3]``, between ``tx`` and ``rx``
+    ``[m, 3]``; a pure tensor function.
     """
+    n_w, n_a = indices
     hxx, hxy, hyy = hess.unbind(-1)
     r1 = torch.linalg.vector_norm(point - tx, dim=-1)
     r2 = torch.linalg.vector_norm(rx - point, dim=-1)
@@ -191,7 +194,7 @@ def iterate_newton(problem: PathProblem, init, opts: NewtonOptions, compiled: bo
             ws, ws_rows, ws_xy, ws_ev = ws.rows(keep), ws_rows[keep], ws_xy[keep], ws_ev.select(keep)
             todo = torch.ones(count, dtype=torch.bool, device=tx.device)
 
-        step = newton_direction(ws_ev.hess, ws_ev.grad, ws_ev.point, ws.tx, ws.rx, n_w, n_a, opts.max_step)
+        step = newton_direction(ws_ev.hess, ws_ev.grad, ws_ev.point, ws.tx, ws.rx, problem.indices, opts.max_step)
         step = step * todo.unsqueeze(-1)
         slope = (ws_ev.grad * step).sum(-1)
         fraction = torch.ones_like(slope)

@@ -62,7 +62,7 @@ class PathProblem:
 
     def path(self, stop: Iterate) -> PathSolution:
         """The path through where the iterations ``stop``ped (:func:`finish_path`)."""
-        return finish_path(stop.point, stop.slope, self.tx, self.rx, stop.converged, stop.iterations, *self.indices)
+        return finish_path(stop, self.tx, self.rx, self.indices)
 
 
 class Iterate(NamedTuple):
@@ -99,8 +99,11 @@ def flat_sea_point(tx: torch.Tensor, rx: torch.Tensor, n_water: float = N_WATER,
     return torch.cat((xy, torch.zeros_like(s).unsqueeze(-1)), dim=-1)
 
 
-def finish_path(point, slope, tx, rx, converged, iterations, n_w, n_a) -> PathSolution:
-    """Directions, angles and lengths of the path through ``point``; flags invalid paths."""
+def finish_path(stop: Iterate, tx, rx, indices: RefractiveIndices) -> PathSolution:
+    """Directions, angles and lengths of the path between ``tx`` and ``rx`` ``[B, 3]`` through the point where the
+    iterations ``stop``ped (its point, slope, convergence and iterations); flags invalid paths."""
+    point, slope, converged, iterations = stop.point, stop.slope, stop.converged, stop.iterations
+    n_w, n_a = indices
     normal = torch.cat((-slope, torch.ones_like(slope[:, :1])), dim=-1)
     normal = normal / torch.linalg.vector_norm(normal, dim=-1, keepdim=True)
     d1, d2 = point - tx, rx - point
