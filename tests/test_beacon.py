@@ -35,7 +35,7 @@ def light_of(model, surface, tx, rx, time=0.0):
 
 
 def seas(model, count, seed):
-    if model.prepared_keys:
+    if model.Prepared._fields:
         return WaveSurface.sample(
             sea_state(wind=12.0, spectrum="elfouhaily", n_wavenumbers=8, n_dir=4), count, seed=seed, dtype=F64
         )

@@ -10,7 +10,6 @@ the same tensor.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 from typing import NamedTuple
 
@@ -62,7 +61,7 @@ class StepState:
         action_history: the last actions ``[B, history_length, 4]``, newest first.
         packets: the packets in flight ``[B, latency_steps + 1, width]``, newest first; the controller sees the last
             (the beacon's parts: the first).
-        prepared: the channel's per-episode constants by its names (``ChannelModel.prepared_keys``), ``[B, ...]``.
+        prepared: the channel's per-episode constants, a named tuple (``ChannelModel.Prepared``) of ``[B, ...]``.
     """
 
     sea: Harmonics
@@ -81,12 +80,10 @@ class StepState:
     last_feature: torch.Tensor
     action_history: torch.Tensor
     packets: torch.Tensor
-    prepared: Mapping[str, torch.Tensor]
+    prepared: tuple
 
     @classmethod
-    def zeros(
-        cls, sea: Harmonics, prepared: Mapping[str, torch.Tensor], history_length: int, latency_steps: int
-    ) -> StepState:
+    def zeros(cls, sea: Harmonics, prepared: tuple, history_length: int, latency_steps: int) -> StepState:
         """A state of zeros for the links of ``sea`` (their number, device and float dtype), with room for
         ``history_length`` features and actions, ``latency_steps + 1`` packets in flight and the channel's
         ``prepared`` constants (one link's worth of each is their shape)."""
@@ -112,7 +109,7 @@ class StepState:
             last_feature=zeros(),
             action_history=zeros(history_length, 4),
             packets=zeros(latency_steps + 1, sum(packet_sizes(history_length))),
-            prepared={key: zeros(*value.shape[1:]) for key, value in prepared.items()},
+            prepared=type(prepared)(*(zeros(*value.shape[1:]) for value in prepared)),
         )
 
     def after(self, moved: Moved, **changes: torch.Tensor) -> StepState:
@@ -133,8 +130,8 @@ class StepState:
         for field in fields(self):
             mine, theirs = getattr(self, field.name), getattr(links, field.name)
             if field.name == "prepared":
-                for key, value in theirs.items():
-                    mine[key][rows] = value
+                for constant, value in zip(mine, theirs, strict=True):
+                    constant[rows] = value
             elif field.name != "sea":
                 mine[rows] = theirs
 

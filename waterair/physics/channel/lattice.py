@@ -27,9 +27,8 @@ a compiled step sums at each node, which inductor runs faster.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import torch
 
@@ -60,6 +59,15 @@ EIGH_CHUNK = 2**14
 2 × 2 matrices on an H200, CUDA 13); each matrix is solved on its own, so the pieces give what one call would."""
 
 
+class LatticeShape(NamedTuple):
+    """A two-scale lattice's per-episode shape (:func:`lattice_shape`): its ``basis`` ``[B, 2, 2]``, the
+    unresolved slopes' ``blur`` ``[B, 3]`` and the ``pull`` ``[B, 2, 2]`` toward where the beam aims."""
+
+    basis: torch.Tensor
+    blur: torch.Tensor
+    pull: torch.Tensor
+
+
 @dataclass(frozen=True)
 class TwoScale(ChannelModel):
     """Every point of the resolved surface, blurred by the unresolved slopes and the aperture (eq. 4.8), on
@@ -74,7 +82,7 @@ class TwoScale(ChannelModel):
     span: float = LATTICE_SPAN
 
     needs_exact_point = False
-    prepared_keys = ("lattice_basis", "blur", "lattice_pull")
+    Prepared = LatticeShape
 
     def __post_init__(self) -> None:
         self.check_settings(nodes=self.nodes, span=self.span)
@@ -92,11 +100,10 @@ class TwoScale(ChannelModel):
     def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
         return calm_sea_reference(tx, rx, self.optics)
 
-    def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> dict[str, torch.Tensor]:
-        """The lattice's basis ``[B, 2, 2]``, blur ``[B, 3]`` and pull ``[B, 2, 2]`` (:func:`lattice_shape`, in
-        float64)."""
+    def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> LatticeShape:
+        """The lattice's shape (:func:`lattice_shape`, in float64), in ``tx``'s dtype."""
         basis, blur, pull = lattice_shape(tx.double(), rx.double(), unresolved.double(), self.optics)
-        return {"lattice_basis": basis.to(tx.dtype), "blur": blur.to(tx.dtype), "lattice_pull": pull.to(tx.dtype)}
+        return LatticeShape(basis.to(tx.dtype), blur.to(tx.dtype), pull.to(tx.dtype))
 
     def light(
         self,
@@ -104,13 +111,14 @@ class TwoScale(ChannelModel):
         path: PathSolution,
         ends: LinkEnds,
         time: torch.Tensor,
-        prepared: Mapping[str, torch.Tensor],
+        prepared: tuple,
         generator: torch.Generator | None = None,
         copies: int = 1,
     ) -> LightSamples:
         followed = near_calm_point(path, ends.calm_point).unsqueeze(-1)
         centre = torch.where(followed, path.point[:, :2], ends.calm_point[:, :2])
-        basis, blur = prepared["lattice_basis"], prepared["blur"]
+        constants = cast(LatticeShape, prepared)  # what prepare gave
+        basis, blur = constants.basis, constants.blur
 
         def lattice(at: torch.Tensor) -> LightSamples:
             grid = Lattice(at, basis, self.nodes, self.span)
@@ -121,12 +129,12 @@ class TwoScale(ChannelModel):
         else:  # the lattice around the tracked point does not depend on the pointing: once per link
             links = centre.shape[0] // copies
             sea_once = Harmonics(*(v[:links] for v in sea))
-            tx, rx, now, at, shape, spread = (v[:links] for v in (ends.tx, ends.rx, time, centre, basis, blur))
-            grid = Lattice(at, shape, self.nodes, self.span)
+            tx, rx, now, at, basis_once, spread = (v[:links] for v in (ends.tx, ends.rx, time, centre, basis, blur))
+            grid = Lattice(at, basis_once, self.nodes, self.span)
             everywhere = repeated(two_scale_light(sea_once, tx, rx, now, grid, spread, self.optics), copies)
         if ends.pointing is None:
             return everywhere
-        shift = (prepared["lattice_pull"] @ (beam_aim(ends.tx, ends.pointing) - centre).unsqueeze(-1))[..., 0]
+        shift = (constants.pull @ (beam_aim(ends.tx, ends.pointing) - centre).unsqueeze(-1))[..., 0]
         on_beam = lattice(centre + shift)
         # solve_ex: linalg.solve's error check is an op with effects, which keeps the compiled step out of the
         # inductor cache (a full recompile per process); basis is a lattice's, never singular

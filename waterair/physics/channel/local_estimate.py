@@ -30,7 +30,14 @@ from waterair.physics.channel.facets import interception, slope_density
 from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples
 from waterair.physics.channel.model import LinkEnds
-from waterair.physics.channel.montecarlo import MonteCarloLight, RayChunk, RayEstimate, RayRequest, ray_offsets
+from waterair.physics.channel.montecarlo import (
+    MonteCarloLight,
+    RayChunk,
+    RayEstimate,
+    RayRequest,
+    UnresolvedSlopes,
+    ray_offsets,
+)
 from waterair.physics.channel.rays import FEWEST_ITERATIONS, departures, surface_hits
 from waterair.physics.optics import transverse_frame, water_transmittance
 from waterair.physics.surface import Harmonics
@@ -113,7 +120,7 @@ class LocalEstimate(RayEstimate):
         if "points" in settings:
             check_int("points", settings["points"], 1, 10**4)
 
-    def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> dict[str, torch.Tensor]:
+    def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> UnresolvedSlopes:
         """The unresolved slope covariance ``[B, 3]`` the facet density uses; refused where it is not positive."""
         xx, xy, yy = unresolved.to(torch.float64).unbind(-1)
         if not bool(((xx > 0) & (xx * yy - xy**2 > 0)).all()):

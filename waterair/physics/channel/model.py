@@ -18,7 +18,6 @@ be computed inside the step's compiled graph). Units: m, s, rad; gains in 1/m².
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import ClassVar, NamedTuple
 
@@ -28,6 +27,10 @@ from waterair.physics.channel.geometry import Transceiver
 from waterair.physics.channel.light import LightSamples, Reception, receive
 from waterair.physics.paths import PathSolution
 from waterair.physics.surface import Harmonics
+
+
+class NoConstants(NamedTuple):
+    """What :meth:`ChannelModel.prepare` gives a model without per-episode constants: nothing."""
 
 
 class LinkEnds(NamedTuple):
@@ -53,17 +56,17 @@ class ChannelModel:
     """Whether :meth:`light` is a pure tensor function that compiles into the step's graph."""
     along_path: ClassVar[bool] = False
     """Whether the light is the tracked path's one ray, read as the paper reads it (:func:`.light.receive`)."""
-    prepared_keys: ClassVar[tuple[str, ...]] = ()
-    """The names of what :meth:`prepare` returns."""
+    Prepared: ClassVar[type[tuple]] = NoConstants
+    """The named tuple :meth:`prepare` returns (its fields the constants' names)."""
 
     def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
         """G_0 ``[B]`` (1/m²) for ends ``tx``, ``rx`` ``[B, 3]`` (m): both ends aligned on a calm sea."""
         raise NotImplementedError
 
-    def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> dict[str, torch.Tensor]:
-        """Per-link constants of an episode (named :attr:`prepared_keys`), each ``[B, ...]`` in ``tx``'s dtype,
-        from the ends ``[B, 3]`` (m) and the sea's unresolved slope covariance ``[B, 3]``; none by default."""
-        return {}
+    def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> tuple:
+        """Per-link constants of an episode (a :attr:`Prepared`), each ``[B, ...]`` in ``tx``'s dtype, from the
+        ends ``[B, 3]`` (m) and the sea's unresolved slope covariance ``[B, 3]``; none by default."""
+        return NoConstants()
 
     def light(
         self,
@@ -71,7 +74,7 @@ class ChannelModel:
         path: PathSolution,
         ends: LinkEnds,
         time: torch.Tensor,
-        prepared: Mapping[str, torch.Tensor],
+        prepared: tuple,
         generator: torch.Generator | None = None,
         copies: int = 1,
     ) -> LightSamples:

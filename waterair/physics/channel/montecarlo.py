@@ -17,9 +17,9 @@ m, rad, 1/m² per unit on-axis radiant intensity.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import torch
 
@@ -40,6 +40,12 @@ from waterair.physics.optics import (
 )
 from waterair.physics.paths import PathSolution
 from waterair.physics.surface import Harmonics
+
+
+class UnresolvedSlopes(NamedTuple):
+    """A Monte Carlo model's per-episode constant: the sea's unresolved slope ``covariance`` ``[B, 3]``."""
+
+    covariance: torch.Tensor
 
 
 class MonteCarloLight(NamedTuple):
@@ -92,7 +98,7 @@ class RayEstimate(ChannelModel):
 
     needs_exact_point = False
     compiles = False
-    prepared_keys = ("unresolved",)
+    Prepared = UnresolvedSlopes
 
     @staticmethod
     def check_settings(**settings) -> None:
@@ -105,9 +111,9 @@ class RayEstimate(ChannelModel):
     def reference_gain(self, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
         return calm_sea_reference(tx, rx, self.optics)
 
-    def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> dict[str, torch.Tensor]:
+    def prepare(self, tx: torch.Tensor, rx: torch.Tensor, unresolved: torch.Tensor) -> UnresolvedSlopes:
         """The unresolved slope covariance ``[B, 3]``."""
-        return {"unresolved": unresolved.to(tx.dtype)}
+        return UnresolvedSlopes(unresolved.to(tx.dtype))
 
     def light(
         self,
@@ -115,11 +121,11 @@ class RayEstimate(ChannelModel):
         path: PathSolution,
         ends: LinkEnds,
         time: torch.Tensor,
-        prepared: Mapping[str, torch.Tensor],
+        prepared: tuple,
         generator: torch.Generator | None = None,
         copies: int = 1,
     ) -> LightSamples:
-        return self.estimate(sea, prepared["unresolved"], ends, time, generator).light
+        return self.estimate(sea, cast(UnresolvedSlopes, prepared).covariance, ends, time, generator).light
 
     def estimate(
         self,

@@ -21,7 +21,6 @@ bounds the power there (:func:`ray_tube_factor`). Gains here are per unit on-axi
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import torch
@@ -56,7 +55,7 @@ class RayTube(ChannelModel):
         path: PathSolution,
         ends: LinkEnds,
         time: torch.Tensor,
-        prepared: Mapping[str, torch.Tensor],
+        prepared: tuple,
         generator: torch.Generator | None = None,
         copies: int = 1,
     ) -> LightSamples:

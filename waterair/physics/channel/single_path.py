@@ -8,7 +8,6 @@ ray of weight G_p G_ref along the tracked path. Distances in metres, angles in r
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import torch
@@ -45,7 +44,7 @@ class SinglePath(ChannelModel):
         path: PathSolution,
         ends: LinkEnds,
         time: torch.Tensor,
-        prepared: Mapping[str, torch.Tensor],
+        prepared: tuple,
         generator: torch.Generator | None = None,
         copies: int = 1,
     ) -> LightSamples:
