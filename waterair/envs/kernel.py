@@ -26,6 +26,7 @@ import torch
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
 from waterair.envs.constants import Actions, StepConstants
 from waterair.envs.sensors import (
+    PACKET_PARTS,
     SensorNoise,
     back_projection,
     beacon_pointing,
@@ -241,8 +242,9 @@ def pack(readings: Readings, history: torch.Tensor) -> torch.Tensor:
 def unpack(packet: torch.Tensor) -> Packet:
     """The parts of one packet ``[n, width]`` by name (the inverse of :func:`pack`)."""
     history_length = packet.shape[-1] - sum(packet_sizes(0))
-    *readings, history = packet.split(packet_sizes(history_length), dim=-1)
-    return Packet(Readings(*readings), history)
+    parts = dict(zip(PACKET_PARTS, packet.split(packet_sizes(history_length), dim=-1), strict=True))
+    history = parts.pop("history")
+    return Packet(Readings(**parts), history)
 
 
 def deliver(packets: torch.Tensor, latency_steps: int | torch.Tensor) -> Packet:
@@ -355,8 +357,18 @@ def observe(c: StepConstants, state: StepState) -> torch.Tensor:
     narrow, wide = DIVERGENCE_SPAN
     divergence = torch.log(state.divergence**2 / (narrow * wide)) / math.log(wide / narrow)
     divergence = divergence.to(time.dtype).unsqueeze(-1)
-    late = [*delivered.readings, delivered.history]
-    return torch.cat((*late[:3], time, *late[3:], state.action_history.flatten(1), geometry, divergence), dim=-1)
+    late = delivered.readings
+    return torch.cat(
+        (
+            *(late.tx_pointing, late.rx_pointing, late.intensity),
+            time,
+            *(late.spot, late.spot_valid, late.beacon, late.beacon_valid, delivered.history),
+            state.action_history.flatten(1),
+            geometry,
+            divergence,
+        ),
+        dim=-1,
+    )
 
 
 def observation_columns(config: EnvConfig) -> list[int] | None:
