@@ -8,7 +8,7 @@ from conftest import compose_config
 from hypothesis import given
 from hypothesis import strategies as st
 
-from waterair.envs.rewards import Reward, le_reward_terms
+from waterair.envs.rewards import INTENSITY_REWARDS, Reward, le_reward_terms
 from waterair.physics.link import LinkBudget, fec_power, received_power, snr
 from waterair.training.builders import make_env
 from waterair.training.config import validate
@@ -118,3 +118,13 @@ def test_reward_snr_from_the_command_line_steps_the_env_on_the_links_budget():
     torch.testing.assert_close(nxt["reward"].squeeze(-1), expected)
     with pytest.raises(ValueError, match=r"^link.power_w = -1"):
         validate(compose_config("config", ["reward=snr", "link.power_w=-1", *SMALL_ENV]))
+
+
+def test_a_reward_is_chosen_by_name_from_the_registry_and_a_new_one_is_one_entry(monkeypatch):
+    intensity = torch.tensor([0.0, 0.5, 2.0])
+    terms = le_reward_terms(intensity, Reward())
+    torch.testing.assert_close(Reward()(intensity), 0.1 * (terms[0] + terms[1] + terms[2]))
+    with pytest.raises(ValueError, match="reward.name = 'square'"):
+        Reward(name="square")
+    monkeypatch.setitem(INTENSITY_REWARDS, "square", lambda reward, intensity: intensity**2)
+    torch.testing.assert_close(Reward(name="square", pointing=0.5)(intensity, torch.ones(3)), intensity**2 - 0.5)

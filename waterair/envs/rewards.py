@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import torch
@@ -30,7 +30,10 @@ import torch
 from waterair.core.validation import check_choice, check_range
 from waterair.physics.link import LinkBudget, fec_power, received_power, snr
 
-REWARD_NAMES = ("le", "linear", "log", "snr")
+INTENSITY_REWARDS: dict[str, Callable[[Reward, torch.Tensor], torch.Tensor]] = {}
+"""The rewards of the intensity I by name (the ``reward`` group's options), each ``f(reward, I)``; filled below."""
+GAIN_REWARDS = ("snr",)
+"""The rewards of the gain G, through the link budget (:meth:`Reward.of_gain`)."""
 
 
 @dataclass(frozen=True)
@@ -71,7 +74,7 @@ class Reward:
     """``snr``: P_FEC (W) and SNR(P_FEC), computed once here so that the step needs no host work."""
 
     def __post_init__(self) -> None:
-        check_choice("reward.name", self.name, REWARD_NAMES)
+        check_choice("reward.name", self.name, (*INTENSITY_REWARDS, *GAIN_REWARDS))
         check_range("reward.a", self.a, 0.0, 1e6, low_open=True)
         check_range("reward.b", self.b, 0.0, 1e12, low_open=True)
         check_range("reward.c", self.c, 0.0, 10.0)
@@ -80,8 +83,8 @@ class Reward:
         check_range("reward.floor", self.floor, 0.0, 1.0, low_open=True, high_open=True)
         check_range("reward.pointing", self.pointing, 0.0, 1e3)
         check_range("reward.slope", self.slope, 0.0, 100.0, low_open=True)
-        if self.name == "snr" and self.link is None:
-            raise ValueError("reward.name = 'snr' needs the link group (link: the budget it reads)")
+        if self.name in GAIN_REWARDS and self.link is None:
+            raise ValueError(f"reward.name = {self.name!r} needs the link group (link: the budget it reads)")
         if self.link is not None:
             power = fec_power(self.link)
             at_limit = snr(torch.tensor(power, dtype=torch.float64), *self._noise()).item()
@@ -97,25 +100,15 @@ class Reward:
         """Reward of intensity I ≥ 0 (any shape), or of the gain G (1/m², same shape; ``snr``, through a beam of
         each link's ``divergence`` ``[B]`` where given), less ``pointing`` × ``misalignment`` (same shape) when
         given; finite for every finite I in [0, 10]."""
-        if self.name == "snr":
+        if self.name in GAIN_REWARDS:
             if gain is None:
-                raise ValueError("reward.name = 'snr' is a reward of the gain; call it with gain=")
+                raise ValueError(f"reward.name = {self.name!r} is a reward of the gain; call it with gain=")
             reward = self.of_gain(gain, divergence)
         else:
-            reward = self.of_intensity(intensity)
+            reward = INTENSITY_REWARDS[self.name](self, intensity)
         if misalignment is None or self.pointing == 0.0:
             return reward
         return reward - self.pointing * misalignment
-
-    def of_intensity(self, intensity: torch.Tensor) -> torch.Tensor:
-        """The intensity part of the reward (the paper's, for ``le``)."""
-        clamped = intensity.clamp(min=self.floor)
-        if self.name == "linear":
-            return intensity
-        if self.name == "log":
-            return torch.log10(clamped)
-        terms = torch.log1p(self.a * intensity) + torch.log10(self.b * clamped) + torch.exp(self.c * intensity)
-        return self.gain * terms + self.bias
 
     def of_gain(self, gain: torch.Tensor, divergence: torch.Tensor | None = None) -> torch.Tensor:
         """The ``snr`` reward of channel gains G (1/m²): log10 SNR relative to the FEC limit, a slope below it;
@@ -141,12 +134,27 @@ class Reward:
 
 
 def le_reward_terms(intensity: torch.Tensor, reward: Reward) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """The three LE terms ln(aI + 1), log10(b max(I, floor)), exp(cI), for calibration plots."""
+    """The three LE terms ln(aI + 1), log10(b max(I, floor)), exp(cI) (also for calibration plots)."""
     return (
         torch.log1p(reward.a * intensity),
         torch.log10(reward.b * intensity.clamp(min=reward.floor)),
         torch.exp(reward.c * intensity),
     )
+
+
+def le_reward(reward: Reward, intensity: torch.Tensor) -> torch.Tensor:
+    """The paper's logarithm-exponential reward G_r (ln(aI + 1) + log10(b I) + exp(cI)) + B."""
+    ln_term, log_term, exp_term = le_reward_terms(intensity, reward)
+    return reward.gain * (ln_term + log_term + exp_term) + reward.bias
+
+
+INTENSITY_REWARDS.update(
+    le=le_reward,
+    linear=lambda reward, intensity: intensity,
+    log=lambda reward, intensity: torch.log10(intensity.clamp(min=reward.floor)),
+)
+REWARD_NAMES = (*INTENSITY_REWARDS, *GAIN_REWARDS)
+"""Every reward's name: a new one is a function of (reward, I) added to :data:`INTENSITY_REWARDS`."""
 
 
 __all__ = ["REWARD_NAMES", "Reward", "le_reward_terms"]
