@@ -290,3 +290,10 @@ def test_observation_layout_names_every_part_in_order():
     observation = env.reset()["observation"]
     torch.testing.assert_close(env.observation_part(observation, "rx_pointing"), observation[:, 3:6])
     assert (env.observation_part(observation, "rx_pointing")[:, 2] == -1).all()  # straight down at reset
+
+
+def test_every_action_mode_and_residual_base_the_config_allows_is_one_entry_of_the_steps_registries():
+    from waterair.envs import config, kernel
+
+    assert set(kernel.ACTION_MODES) == set(config.ACTION_MODES)
+    assert set(kernel.RESIDUAL_BASES) == set(config.RESIDUAL_BASES)

@@ -79,14 +79,25 @@ def advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
 
 def aimed_tilts(c: StepConstants, actions: Actions, state: StepState, action: torch.Tensor):
     """The tilts ``[B, 2]`` each of the transmitter and the receiver that ``action`` asks for, acting as
-    ``actions`` says, before the tilt limit."""
-    if actions.mode == "absolute":
-        return action[:, :2] * c.max_tilt, action[:, 2:] * c.max_tilt
-    if actions.mode == "residual":
-        # the correction applies from the first reading taken with the controller's own pointing
-        base, tracking = base_tilts(c, state, actions.base), ~read_parked(state.steps, c.sensor.latency_steps)
-        reach = residual_reach(actions, state.divergence.to(action.dtype)) * tracking.to(action.dtype).unsqueeze(-1)
-        return base[:, :2] + action[:, :2] * reach[:, :1], base[:, 2:] + action[:, 2:] * reach[:, 1:]
+    ``actions`` says (:data:`ACTION_MODES`), before the tilt limit."""
+    return ACTION_MODES[actions.mode](c, actions, state, action)
+
+
+def absolute_tilts(c: StepConstants, actions: Actions, state: StepState, action: torch.Tensor):
+    """``absolute``: the action is the tilt, in units of the largest."""
+    return action[:, :2] * c.max_tilt, action[:, 2:] * c.max_tilt
+
+
+def residual_tilts(c: StepConstants, actions: Actions, state: StepState, action: torch.Tensor):
+    """``residual``: the base controller's tilts, corrected within each link's reach from the first reading
+    taken with the controller's own pointing."""
+    base, tracking = base_tilts(c, state, actions.base), ~read_parked(state.steps, c.sensor.latency_steps)
+    reach = residual_reach(actions, state.divergence.to(action.dtype)) * tracking.to(action.dtype).unsqueeze(-1)
+    return base[:, :2] + action[:, :2] * reach[:, :1], base[:, 2:] + action[:, 2:] * reach[:, 1:]
+
+
+def delta_tilts(c: StepConstants, actions: Actions, state: StepState, action: torch.Tensor):
+    """``delta``: the present tilts moved by at most a step's slew."""
     return state.tx_tilt + action[:, :2] * c.slew_step, state.rx_tilt + action[:, 2:] * c.slew_step
 
 
@@ -105,28 +116,47 @@ def flat_tilts(point: torch.Tensor, tx: torch.Tensor, rx: torch.Tensor) -> torch
 
 
 def base_tilts(c: StepConstants, state: StepState, base: str | None = None) -> torch.Tensor:
-    """The residual base controller's tilts ``[B, 4]`` for the next action (``base``, default ``env.residual_base``):
-    flat-sea Snell, or the quadrant-detector back-projection of the delivered packet (flat-sea Snell where it has
-    no reading, or only the one read with the gimbals parked at the reset)."""
-    base = base or c.actions.base
+    """The residual base controller's tilts ``[B, 4]`` for the next action (``base``, default ``env.residual_base``;
+    :data:`RESIDUAL_BASES`)."""
+    return RESIDUAL_BASES[base or c.actions.base](c, state)
+
+
+def flat_snell_base(c: StepConstants, state: StepState) -> torch.Tensor:
+    """``flat_snell``: both ends at the calm-sea path point."""
+    return flat_tilts(state.flat_point, state.tx_position, state.rx_position)
+
+
+def beacon_tracker_base(c: StepConstants, state: StepState) -> torch.Tensor:
+    """``beacon_tracker``: each end along its own reading, the beacon's at the transmitter, the spot's at the
+    receiver (flat-sea Snell where it has none)."""
+    assert c.beacon is not None  # EnvConfig.senses_beacon: a beacon base reads the beacon
+    delivered = deliver(state.packets, c.sensor.latency_steps).readings
+    flat = unit_vector(state.flat_point - state.tx_position), unit_vector(state.flat_point - state.rx_position)
+    tx_dir, rx_dir = beacon_pointing(
+        (pointing(state.tx_tilt, up=True), delivered.beacon, delivered.beacon_valid[:, 0] > 0.5),
+        (delivered.rx_pointing, delivered.spot, delivered.spot_valid[:, 0] > 0.5),
+        flat,
+        c.beacon.half_fov,
+        c.optics.half_fov,
+    )
+    return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
+
+
+def aoa_tracker_base(c: StepConstants, state: StepState) -> torch.Tensor:
+    """``aoa_tracker``: the quadrant detector's back-projection of the delivered packet (flat-sea Snell where it
+    has no reading, or only the one read with the gimbals parked at the reset)."""
     point, tx, rx = state.flat_point, state.tx_position, state.rx_position
-    if base == "flat_snell":
-        return flat_tilts(point, tx, rx)
     delivered = deliver(state.packets, c.sensor.latency_steps).readings
     flat = unit_vector(point - tx), unit_vector(point - rx)
-    if base == "beacon_tracker":
-        assert c.beacon is not None  # EnvConfig.senses_beacon: a beacon base reads the beacon
-        tx_dir, rx_dir = beacon_pointing(
-            (pointing(state.tx_tilt, up=True), delivered.beacon, delivered.beacon_valid[:, 0] > 0.5),
-            (delivered.rx_pointing, delivered.spot, delivered.spot_valid[:, 0] > 0.5),
-            flat,
-            c.beacon.half_fov,
-            c.optics.half_fov,
-        )
-        return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
     seen = (delivered.spot_valid[:, 0] > 0.5) & ~read_parked(state.steps, c.sensor.latency_steps)
     tx_dir, rx_dir = back_projection(delivered.rx_pointing, delivered.spot, seen, tx, rx, flat, c.optics.half_fov)
     return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
+
+
+ACTION_MODES = {"absolute": absolute_tilts, "delta": delta_tilts, "residual": residual_tilts}
+"""How an action moves the gimbals, by ``env.action_mode``: each ``f(c, actions, state, action)`` → both tilts."""
+RESIDUAL_BASES = {"flat_snell": flat_snell_base, "aoa_tracker": aoa_tracker_base, "beacon_tracker": beacon_tracker_base}
+"""What residual actions correct, by ``env.residual_base``: each ``f(c, state)`` → the tilts ``[B, 4]``."""
 
 
 def limit_tilt(tilt: torch.Tensor, max_tilt: float) -> torch.Tensor:
