@@ -57,3 +57,40 @@ def test_the_full_channels_upper_bound_does_not_depend_on_the_policy():
         b = second.step(b.set("action", 0.5 * torch.ones(8, 4)))["next"]
     torch.testing.assert_close(a["gain_upper_bound"], b["gain_upper_bound"])
     assert not torch.allclose(a["gain"], b["gain"])
+
+
+def test_the_docs_recipe_for_a_new_channel_model_gives_one_the_env_steps(monkeypatch):
+    """docs/model.md §4.7, followed: a model class (the paper's one path at half its light), a ``Channel`` option
+    with its name and the model it builds, its entry in ``CHANNELS``; nothing else changes, and an environment
+    steps it by name, on the same seas as the model it is made from."""
+    from dataclasses import dataclass
+
+    from waterair.physics.channel import CHANNELS, Channel, SinglePath
+
+    @dataclass(frozen=True)
+    class HalfPath(SinglePath):
+        def light(self, sea, path, ends, time, prepared, generator=None, copies=1):
+            light = super().light(sea, path, ends, time, prepared, generator, copies)
+            return light._replace(weight=0.5 * light.weight)
+
+    @dataclass(frozen=True)
+    class HalfPathChannel(Channel):
+        name = "half_path"
+
+        def model(self, optics, two_scale_sea):
+            return HalfPath(optics)
+
+    monkeypatch.setitem(CHANNELS, HalfPathChannel.name, HalfPathChannel)
+    sea = {"spectrum": "jonswap", "n_freq": 16, "n_dir": 8}
+
+    def gains(name: str) -> torch.Tensor:
+        env = WaterAirEnv(num_envs=4, seed=3, sea=sea, channel={"name": name})
+        td, trace = env.reset(), []
+        for _ in range(3):
+            td = env.step(td.set("action", torch.zeros(4, 4)))["next"]
+            trace.append(td["gain"])
+        return torch.stack(trace)
+
+    half, whole = gains("half_path"), gains("single_path")
+    assert whole.min() > 0
+    torch.testing.assert_close(half, 0.5 * whole)
