@@ -148,3 +148,12 @@ def test_a_loss_target_that_does_not_match_the_agent_is_a_one_line_error():
 @pytest.mark.parametrize("name", list(SHIPPED))
 def test_each_shipped_policy_config_is_a_valid_config(name):
     validate(OmegaConf.load(ROOT / "waterair" / "assets" / f"{name}.yaml"))
+
+
+def test_every_noise_and_buffer_the_config_allows_is_one_entry_of_the_builders_registries():
+    from waterair.training import builders
+    from waterair.training import config as training_config
+    from waterair.training.algorithms import off_policy
+
+    assert set(off_policy.EXPLORATION_NOISES) == set(training_config.NOISES)
+    assert set(builders.STORAGES) == set(training_config.BUFFERS)

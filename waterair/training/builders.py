@@ -53,6 +53,23 @@ def make_actor(cfg: DictConfig, env, device) -> TensorDictModule:
     return build_actor(*sizes, cfg.actor.hidden, cfg.actor.activation, cfg.actor.zero_output).to(device)
 
 
+def memory_storage(buffer: DictConfig, capacity: int, run_dir: Path, device):
+    """``buffer=memory``: the transitions in memory, on the device."""
+    return LazyTensorStorage(capacity, device=device)
+
+
+def memmap_storage(buffer: DictConfig, capacity: int, run_dir: Path, device):
+    """``buffer=memmap``: the transitions in memory-mapped files (``buffer.scratch_dir``, else the run's
+    ``buffer/``)."""
+    scratch = Path(buffer.scratch_dir) if buffer.scratch_dir else run_dir / "buffer"
+    return LazyMemmapStorage(capacity, scratch_dir=str(scratch), existsok=True)
+
+
+STORAGES = {"memory": memory_storage, "memmap": memmap_storage}
+"""The ``buffer`` group's options by name: each builds the replay storage from the group, the capacity, the run's
+folder and the device."""
+
+
 def make_buffer(cfg: DictConfig, run_dir: Path, device, on_policy: bool) -> TensorDictReplayBuffer:
     """Uniform replay over flattened transitions; in memory or memory-mapped on disk.
 
@@ -63,11 +80,7 @@ def make_buffer(cfg: DictConfig, run_dir: Path, device, on_policy: bool) -> Tens
     ``sample`` of the size it names (a collected batch's updates draw theirs in one call).
     """
     capacity = cfg.collector.frames_per_batch if on_policy else cfg.buffer.capacity
-    if cfg.buffer.name == "memmap":
-        scratch = Path(cfg.buffer.scratch_dir) if cfg.buffer.scratch_dir else run_dir / "buffer"
-        storage = LazyMemmapStorage(capacity, scratch_dir=str(scratch), existsok=True)
-    else:
-        storage = LazyTensorStorage(capacity, device=device)
+    storage = STORAGES[cfg.buffer.name](cfg.buffer, capacity, run_dir, device)
     sampler = SamplerWithoutReplacement(drop_last=True) if on_policy else None
     per_pass = capacity // cfg.buffer.batch_size * cfg.buffer.batch_size if on_policy else None
     return TensorDictReplayBuffer(storage=storage, sampler=sampler, batch_size=per_pass)

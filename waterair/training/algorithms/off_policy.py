@@ -87,26 +87,7 @@ class OffPolicy(Algorithm):
         """
         cfg = self.cfg
         steps = max(1, cfg.noise.annealing_frames // cfg.env.num_envs)
-        spec = env.action_spec_unbatched.to(device)
-        noise: torch.nn.Module
-        if cfg.noise.name == "ou":
-            noise = OrnsteinUhlenbeckProcessModule(
-                spec=spec,
-                eps_init=1.0,
-                eps_end=cfg.noise.sigma_end / max(cfg.noise.sigma_init, 1e-12),
-                annealing_num_steps=steps,
-                theta=cfg.noise.theta,
-                sigma=cfg.noise.sigma_init,
-                device=device,
-            )
-        else:
-            noise = AdditiveGaussianModule(
-                spec=spec,
-                sigma_init=float(cfg.noise.sigma_init),
-                sigma_end=float(cfg.noise.sigma_end),
-                annealing_num_steps=steps,
-                device=device,
-            )
+        noise = EXPLORATION_NOISES[cfg.noise.name](cfg.noise, env.action_spec_unbatched.to(device), steps, device)
         return TensorDictSequential(actor, noise), noise
 
     def make_loss(self, actor, exploration, critic, env):
@@ -179,3 +160,32 @@ class OffPolicy(Algorithm):
             return losses
 
         return learn
+
+
+def ou_noise(noise: DictConfig, spec, steps: int, device) -> torch.nn.Module:
+    """``noise=ou``: Ornstein-Uhlenbeck noise of scale ``sigma_init`` annealed to ``sigma_end`` over ``steps``."""
+    return OrnsteinUhlenbeckProcessModule(
+        spec=spec,
+        eps_init=1.0,
+        eps_end=noise.sigma_end / max(noise.sigma_init, 1e-12),
+        annealing_num_steps=steps,
+        theta=noise.theta,
+        sigma=noise.sigma_init,
+        device=device,
+    )
+
+
+def gaussian_noise(noise: DictConfig, spec, steps: int, device) -> torch.nn.Module:
+    """``noise=gaussian``: additive Gaussian noise annealed from ``sigma_init`` to ``sigma_end`` over ``steps``."""
+    return AdditiveGaussianModule(
+        spec=spec,
+        sigma_init=float(noise.sigma_init),
+        sigma_end=float(noise.sigma_end),
+        annealing_num_steps=steps,
+        device=device,
+    )
+
+
+EXPLORATION_NOISES = {"gaussian": gaussian_noise, "ou": ou_noise}
+"""The ``noise`` group's options by name: each builds the exploration module from the group, the action spec,
+the annealing steps (collected env steps) and the device."""
