@@ -149,7 +149,7 @@ class WaterAirEnv(EnvBase):
             self._reset_rows(rows)
         full = self._full_state()
         constants = self.constants.for_links(full.divergence)
-        self._base_tilt = kernel.base_tilts(constants, full)
+        self.state = replace(self.state, base_tilt=kernel.base_tilts(constants, full))
         out = self._output(kernel.observe(constants, full), reset=rows)
         done = torch.zeros(*self.batch_size, 1, dtype=torch.bool, device=self.device)
         out.update({"done": done, "terminated": done.clone(), "truncated": done.clone()})
@@ -167,7 +167,6 @@ class WaterAirEnv(EnvBase):
         result = self.stepper(self.surface, self._full_state(), action, noise)
         self.state, outputs = result.state, result.outputs
         self.measurement = outputs.measurement
-        self._base_tilt = outputs.base_tilt
         out = self._output(outputs.observation)
         truncated = outputs.truncated
         out.update(
@@ -229,7 +228,7 @@ class WaterAirEnv(EnvBase):
         if self.config.action_mode == "absolute":
             return (target / self.config.max_tilt).clamp(-1.0, 1.0)
         if self.config.action_mode == "residual":
-            base = self._base_tilt if base is None else base.to(self.float_dtype)
+            base = self.state.base_tilt if base is None else base.to(self.float_dtype)
             reach: float | torch.Tensor = self.constants.actions.residual
             if self.constants.actions.beams is not None:
                 divergence = self.state.divergence if divergence is None else divergence
@@ -260,7 +259,6 @@ class WaterAirEnv(EnvBase):
         config = self.config
         latency = self.sensor.longest_latency
         self.state = StepState.zeros(self.surface.harmonics, prepared, config.history_length, latency)
-        self._base_tilt = zeros(4)  # the residual base controller's tilts for the next action
         self.measurement = Measurement(
             gain=zeros(),
             gain_upper_bound=zeros(),
@@ -348,6 +346,6 @@ class WaterAirEnv(EnvBase):
             flat_point=state.flat_point.clone(),
             divergence=state.divergence.clone(),
             tilt=self.tilt,
-            base_tilt=self._base_tilt,
+            base_tilt=self.state.base_tilt.clone(),
         )
         return TensorDict(out, batch_size=self.batch_size, device=self.device)

@@ -91,7 +91,9 @@ def absolute_tilts(c: StepConstants, actions: Actions, state: StepState, action:
 def residual_tilts(c: StepConstants, actions: Actions, state: StepState, action: torch.Tensor):
     """``residual``: the base controller's tilts, corrected within each link's reach from the first reading
     taken with the controller's own pointing."""
-    base, tracking = base_tilts(c, state, actions.base), ~read_parked(state.steps, c.sensor.latency_steps)
+    # the state holds the default base's tilts, as the last step (or reset) concluded them
+    base = state.base_tilt if actions.base == c.actions.base else base_tilts(c, state, actions.base)
+    tracking = ~read_parked(state.steps, c.sensor.latency_steps)
     reach = residual_reach(actions, state.divergence.to(action.dtype)) * tracking.to(action.dtype).unsqueeze(-1)
     return base[:, :2] + action[:, :2] * reach[:, :1], base[:, 2:] + action[:, 2:] * reach[:, 1:]
 
@@ -315,13 +317,14 @@ def conclude(
         last_feature=feature,
         packets=packets,
     )
+    new = replace(new, base_tilt=base_tilts(c, new))
     reward = c.reward(measurement.intensity, misalignment(c, measurement), measurement.gain, state.divergence)
     outputs = Outputs(
         measurement=measurement,
         observation=observe(c, new),
         reward=reward.unsqueeze(-1),
         truncated=(new.steps >= c.max_steps).unsqueeze(-1),
-        base_tilt=base_tilts(c, new),
+        base_tilt=new.base_tilt,
     )
     return StepResult(new, outputs, moved, solution)
 

@@ -61,6 +61,8 @@ class StepState:
         action_history: the last actions ``[B, history_length, 4]``, newest first.
         packets: the packets in flight ``[B, latency_steps + 1, width]``, newest first; the controller sees the last
             (the beacon's parts: the first).
+        base_tilt: the residual base controller's tilts ``[B, 4]`` for the next action, from this state (computed
+            once, where a step concludes or the environment resets, and read by the next step's actions).
         prepared: the channel's per-episode constants, a named tuple (``ChannelModel.Prepared``) of ``[B, ...]``.
     """
 
@@ -80,6 +82,7 @@ class StepState:
     last_feature: torch.Tensor
     action_history: torch.Tensor
     packets: torch.Tensor
+    base_tilt: torch.Tensor
     prepared: tuple
 
     @classmethod
@@ -109,6 +112,7 @@ class StepState:
             last_feature=zeros(),
             action_history=zeros(history_length, 4),
             packets=zeros(latency_steps + 1, sum(packet_sizes(history_length))),
+            base_tilt=zeros(4),
             prepared=type(prepared)(*(zeros(*value.shape[1:]) for value in prepared)),
         )
 
