@@ -117,22 +117,24 @@ def flat_tilts(point: torch.Tensor, tx: torch.Tensor, rx: torch.Tensor) -> torch
     return torch.cat((unit_vector(point - tx)[:, :2], unit_vector(point - rx)[:, :2]), dim=-1)
 
 
-def base_tilts(c: StepConstants, state: StepState, base: str | None = None) -> torch.Tensor:
+def base_tilts(
+    c: StepConstants, state: StepState, base: str | None = None, delivered: Packet | None = None
+) -> torch.Tensor:
     """The residual base controller's tilts ``[B, 4]`` for the next action (``base``, default ``env.residual_base``;
-    :data:`RESIDUAL_BASES`)."""
-    return RESIDUAL_BASES[base or c.actions.base](c, state)
+    :data:`RESIDUAL_BASES`), from the packet ``delivered`` of ``state`` (default: :func:`deliver`'s)."""
+    delivered = deliver(state.packets, c.sensor.latency_steps) if delivered is None else delivered
+    return RESIDUAL_BASES[base or c.actions.base](c, state, delivered.readings)
 
 
-def flat_snell_base(c: StepConstants, state: StepState) -> torch.Tensor:
+def flat_snell_base(c: StepConstants, state: StepState, delivered: Readings) -> torch.Tensor:
     """``flat_snell``: both ends at the calm-sea path point."""
     return flat_tilts(state.flat_point, state.tx_position, state.rx_position)
 
 
-def beacon_tracker_base(c: StepConstants, state: StepState) -> torch.Tensor:
+def beacon_tracker_base(c: StepConstants, state: StepState, delivered: Readings) -> torch.Tensor:
     """``beacon_tracker``: each end along its own reading, the beacon's at the transmitter, the spot's at the
     receiver (flat-sea Snell where it has none)."""
     assert c.beacon is not None  # EnvConfig.senses_beacon: a beacon base reads the beacon
-    delivered = deliver(state.packets, c.sensor.latency_steps).readings
     flat = unit_vector(state.flat_point - state.tx_position), unit_vector(state.flat_point - state.rx_position)
     tx_dir, rx_dir = beacon_pointing(
         (pointing(state.tx_tilt, up=True), delivered.beacon, delivered.beacon_valid[:, 0] > 0.5),
@@ -144,11 +146,10 @@ def beacon_tracker_base(c: StepConstants, state: StepState) -> torch.Tensor:
     return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
 
 
-def aoa_tracker_base(c: StepConstants, state: StepState) -> torch.Tensor:
+def aoa_tracker_base(c: StepConstants, state: StepState, delivered: Readings) -> torch.Tensor:
     """``aoa_tracker``: the quadrant detector's back-projection of the delivered packet (flat-sea Snell where it
     has no reading, or only the one read with the gimbals parked at the reset)."""
     point, tx, rx = state.flat_point, state.tx_position, state.rx_position
-    delivered = deliver(state.packets, c.sensor.latency_steps).readings
     flat = unit_vector(point - tx), unit_vector(point - rx)
     seen = (delivered.spot_valid[:, 0] > 0.5) & ~read_parked(state.steps, c.sensor.latency_steps)
     tx_dir, rx_dir = back_projection(delivered.rx_pointing, delivered.spot, seen, tx, rx, flat, c.optics.half_fov)
@@ -158,7 +159,8 @@ def aoa_tracker_base(c: StepConstants, state: StepState) -> torch.Tensor:
 ACTION_MODES = {"absolute": absolute_tilts, "delta": delta_tilts, "residual": residual_tilts}
 """How an action moves the gimbals, by ``env.action_mode``: each ``f(c, actions, state, action)`` → both tilts."""
 RESIDUAL_BASES = {"flat_snell": flat_snell_base, "aoa_tracker": aoa_tracker_base, "beacon_tracker": beacon_tracker_base}
-"""What residual actions correct, by ``env.residual_base``: each ``f(c, state)`` → the tilts ``[B, 4]``."""
+"""What residual actions correct, by ``env.residual_base``: each ``f(c, state, delivered readings)`` → the tilts
+``[B, 4]``."""
 
 
 def limit_tilt(tilt: torch.Tensor, max_tilt: float) -> torch.Tensor:
@@ -317,11 +319,12 @@ def conclude(
         last_feature=feature,
         packets=packets,
     )
-    new = replace(new, base_tilt=base_tilts(c, new))
+    delivered = deliver(new.packets, c.sensor.latency_steps)  # what the controller reads next, once
+    new = replace(new, base_tilt=base_tilts(c, new, delivered=delivered))
     reward = c.reward(measurement.intensity, misalignment(c, measurement), measurement.gain, state.divergence)
     outputs = Outputs(
         measurement=measurement,
-        observation=observe(c, new),
+        observation=observe(c, new, delivered),
         reward=reward.unsqueeze(-1),
         truncated=(new.steps >= c.max_steps).unsqueeze(-1),
         base_tilt=new.base_tilt,
@@ -377,14 +380,15 @@ def misalignment(c: StepConstants, measurement: Measurement) -> torch.Tensor:
     return torch.where(measurement.path_valid, angles, torch.zeros_like(angles))
 
 
-def observe(c: StepConstants, state: StepState) -> torch.Tensor:
+def observe(c: StepConstants, state: StepState, delivered: Packet | None = None) -> torch.Tensor:
     """Every observation part ``[B, 17 + 5 · history_length]``, in the order of the full layout.
 
     The delivered packet's parts, then the controller's own knowledge (time, action history,
     geometry), which is never late. An environment keeps the columns of the parts its layout asks
-    for (:func:`observation_columns`), outside the graph, so that every preset shares one graph.
+    for (:func:`observation_columns`), outside the graph, so that every preset shares one graph. ``delivered``:
+    the packet that reaches the controller (:func:`deliver`'s), where the caller has it already.
     """
-    delivered = deliver(state.packets, c.sensor.latency_steps)
+    delivered = deliver(state.packets, c.sensor.latency_steps) if delivered is None else delivered
     time = (state.time / c.episode_seconds).unsqueeze(-1)
     geometry = (state.rx_position - state.tx_position)[:, :2] / c.vertical_distance
     narrow, wide = DIVERGENCE_SPAN
