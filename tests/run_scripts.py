@@ -53,7 +53,8 @@ class Script:
             self.pid = self._process.pid
             return
         self._process = None
-        sys.stdout.flush(), sys.stderr.flush()
+        sys.stdout.flush()
+        sys.stderr.flush()
         self.pid = os.fork()
         if self.pid == 0:  # the child: never returns to the test
             os._exit(_run_script(script, list(args), env, self._out, self._err))
@@ -133,7 +134,8 @@ def _run_script(script: str, args: list[str], env: dict[str, str] | None, out: P
         except BaseException:
             traceback.print_exc()
             code = 1
-        sys.stdout.flush(), sys.stderr.flush()
+        sys.stdout.flush()
+        sys.stderr.flush()
     except BaseException:
         code = 1
     return code

@@ -149,8 +149,9 @@ class WaterAirEnv(EnvBase):
             self._reset_rows(rows)
         full = self._full_state()
         constants = self.constants.for_links(full.divergence)
-        self.state = replace(self.state, base_tilt=kernel.base_tilts(constants, full))
-        out = self._output(kernel.observe(constants, full), reset=rows)
+        delivered = kernel.deliver(full.packets, constants.sensor.latency_steps)
+        self.state = replace(self.state, base_tilt=kernel.base_tilts(constants, full, delivered=delivered))
+        out = self._output(kernel.observe(constants, full, delivered), reset=rows)
         done = torch.zeros(*self.batch_size, 1, dtype=torch.bool, device=self.device)
         out.update({"done": done, "terminated": done.clone(), "truncated": done.clone()})
         return out

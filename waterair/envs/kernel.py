@@ -395,17 +395,9 @@ def observe(c: StepConstants, state: StepState, delivered: Packet | None = None)
     divergence = torch.log(state.divergence**2 / (narrow * wide)) / math.log(wide / narrow)
     divergence = divergence.to(time.dtype).unsqueeze(-1)
     late = delivered.readings
-    return torch.cat(
-        (
-            *(late.tx_pointing, late.rx_pointing, late.intensity),
-            time,
-            *(late.spot, late.spot_valid, late.beacon, late.beacon_valid, delivered.history),
-            state.action_history.flatten(1),
-            geometry,
-            divergence,
-        ),
-        dim=-1,
-    )
+    parts = (late.tx_pointing, late.rx_pointing, late.intensity, time, late.spot, late.spot_valid, late.beacon)
+    parts += (late.beacon_valid, delivered.history, state.action_history.flatten(1), geometry, divergence)
+    return torch.cat(parts, dim=-1)
 
 
 def observation_columns(config: EnvConfig) -> list[int] | None:

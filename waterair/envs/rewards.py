@@ -30,8 +30,6 @@ import torch
 from waterair.core.validation import check_choice, check_range
 from waterair.physics.link import LinkBudget, fec_power, received_power, snr
 
-INTENSITY_REWARDS: dict[str, Callable[[Reward, torch.Tensor], torch.Tensor]] = {}
-"""The rewards of the intensity I by name (the ``reward`` group's options), each ``f(reward, I)``; filled below."""
 GAIN_REWARDS = ("snr",)
 """The rewards of the gain G, through the link budget (:meth:`Reward.of_gain`)."""
 
@@ -148,11 +146,12 @@ def le_reward(reward: Reward, intensity: torch.Tensor) -> torch.Tensor:
     return reward.gain * (ln_term + log_term + exp_term) + reward.bias
 
 
-INTENSITY_REWARDS.update(
-    le=le_reward,
-    linear=lambda reward, intensity: intensity,
-    log=lambda reward, intensity: torch.log10(intensity.clamp(min=reward.floor)),
-)
+INTENSITY_REWARDS: dict[str, Callable[[Reward, torch.Tensor], torch.Tensor]] = {
+    "le": le_reward,
+    "linear": lambda reward, intensity: intensity,
+    "log": lambda reward, intensity: torch.log10(intensity.clamp(min=reward.floor)),
+}
+"""The rewards of the intensity I by name (the ``reward`` group's options), each ``f(reward, I)``."""
 REWARD_NAMES = (*INTENSITY_REWARDS, *GAIN_REWARDS)
 """Every reward's name: a new one is a function of (reward, I) added to :data:`INTENSITY_REWARDS`."""
 

@@ -99,8 +99,9 @@ class Stepper:
         self._step, self._finish, self._conclude = pick("step"), pick("finish"), pick("conclude")
         # what the compiled functions get: the numbers that vary between environments as tensors (one graph)
         self.traced = constants.traced(torch.device(device), dtype) if self.compile_kernel else constants
-        self._eager_solve = self._centroid_solve if solver == "centroid" else None
-        self._eager_light = None if constants.channel.compiles else self._drawn_light
+        self._solve = self._centroid_solve if solver == "centroid" else self._fixed_solve
+        self._light = None if constants.channel.compiles else self._drawn_light
+        self._one_graph = solver != "centroid" and constants.channel.compiles
         self.finishing = FixedNewtonOptions(
             iterations=FINISH_ITERATIONS,
             tol=constants.tolerance,
@@ -110,20 +111,21 @@ class Stepper:
 
     def __call__(self, surface: WaveSurface, state: StepState, action: torch.Tensor, noise) -> StepResult:
         """One step of the links of ``state`` (whose seas are ``surface``'s)."""
-        c = self.constants
-        if self._eager_solve is None and self._eager_light is None:
-            result = self._step(self.traced, state, action, noise)  # every stage in one graph
-        else:
-            moved = kernel.advance(c, state, action)
-            solve = self._eager_solve or (lambda surface, state, moved: kernel.solve(c, state, moved.time))
-            solution = solve(surface, state, moved)
-            light = None if self._eager_light is None else self._eager_light(state, moved, solution)
+        if self._one_graph:
+            result = self._step(self.traced, state, action, noise)
+        else:  # the same stages, the solve or the light eager
+            moved = kernel.advance(self.constants, state, action)
+            solution = self._solve(surface, state, moved)
+            light = None if self._light is None else self._light(state, moved, solution)
             result = self._conclude(self.traced, state, moved, solution, noise, light)
-        if self._eager_solve is not None or not c.channel.needs_exact_point:
-            return result
-        if bool(result.solution.converged.all()):  # the step's one host sync
+        finished = self.solver == "centroid" or not self.constants.channel.needs_exact_point
+        if finished or bool(result.solution.converged.all()):  # the step's one host sync
             return result
         return self._finish_paths(surface, state, result, noise)
+
+    def _fixed_solve(self, surface: WaveSurface, state: StepState, moved: Moved) -> Iterate:
+        """The step's fixed-iteration solve (:func:`kernel.solve`), outside the one graph."""
+        return kernel.solve(self.constants, state, moved.time)
 
     def _centroid_solve(self, surface: WaveSurface, state: StepState, moved: Moved) -> Iterate:
         """The paper's centroid solve of the step's path, eagerly, from the last path point."""
