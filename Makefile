@@ -10,7 +10,7 @@ SOURCES := waterair hydra_plugins tests scripts train.py evaluate.py
 # pytest-xdist workers, one torch thread each (docs/benchmarks.md, "Tests")
 WORKERS ?= 2
 
-.PHONY: install train evaluate test test-fast test-portable figures bench slurm-check cuda-check clean
+.PHONY: install train evaluate test test-fast test-portable docs figures bench slurm-check cuda-check clean
 
 install: $(STAMP)
 
@@ -76,6 +76,11 @@ test-portable: $(STAMP)
 
 figures: $(STAMP)
 	$(PYTHON) -m waterair.evaluation.figures --out $(OUT)/figures
+
+# What restates the env's defaults, generated from the dataclasses that hold them: conf/env/default.yaml, the seas'
+# and channels' options, docs/reference/env.md (a test fails while any is stale).
+docs: $(STAMP)
+	$(PYTHON) -m waterair.cli.reference
 
 # Stable-Baselines3, the training and quality suites' reference (the `bench` extra), once after each install.
 $(BENCH_STAMP): $(STAMP)

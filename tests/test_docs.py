@@ -18,7 +18,7 @@ README_LINES = 150
 WORDS = 25_000
 MONTHS = "January|February|March|April|May|June|July|August|September|October|November|December"
 DATE = re.compile(rf"\b20\d\d-\d\d-\d\d\b|\b(?:{MONTHS})\s+(?:\d{{1,2}},?\s+)?20\d\d\b|\(this session\)")
-CITATION = re.compile(r'docs/(\w+)\.md(?:, \\?"([^"\\]+?)\\?"| §(\d+(?:\.\d+)?))')
+CITATION = re.compile(r'docs/([\w/]+)\.md(?:, \\?"([^"\\]+?)\\?"| §(\d+(?:\.\d+)?))')
 CITING = ("waterair", "tests", "conf", "hydra_plugins", "scripts", "docs", ".ci")
 """Folders whose files may cite the docs (docs/results/ is generated and skipped)."""
 

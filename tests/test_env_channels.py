@@ -61,10 +61,11 @@ def test_the_full_channels_upper_bound_does_not_depend_on_the_policy():
 
 def test_the_docs_recipe_for_a_new_channel_model_gives_one_the_env_steps(monkeypatch):
     """docs/model.md §4.7, followed: a model class (the paper's one path at half its light), a ``Channel`` option
-    with its name and the model it builds, its entry in ``CHANNELS``; nothing else changes, and an environment
-    steps it by name, on the same seas as the model it is made from."""
+    with its name and the model it builds, its entry in ``CHANNELS``, its option file as ``make docs`` writes it;
+    nothing else changes, and an environment steps it by name, on the same seas as the model it is made from."""
     from dataclasses import dataclass
 
+    from waterair.cli import reference
     from waterair.physics.channel import CHANNELS, Channel, SinglePath
 
     @dataclass(frozen=True)
@@ -81,6 +82,8 @@ def test_the_docs_recipe_for_a_new_channel_model_gives_one_the_env_steps(monkeyp
             return HalfPath(optics)
 
     monkeypatch.setitem(CHANNELS, HalfPathChannel.name, HalfPathChannel)
+    option = reference.conf_files()[reference.CONF_DIR / "env" / "channel" / "half_path.yaml"]
+    assert option.startswith("# @package env.channel\n") and option.endswith("\nname: half_path\n")
     sea = {"spectrum": "jonswap", "n_freq": 16, "n_dir": 8}
 
     def gains(name: str) -> torch.Tensor:

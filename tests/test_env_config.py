@@ -1,7 +1,7 @@
-"""The env group's keys are each checked once, where they are defined, against the range docs/environment.md
-documents, and an error names the key path (``env.<key>``, ``env.sea.<key>``): a value valid for the env is
-never rejected deeper down (in the physics objects, the channel model or the link budget). A key of the first
-releases is an error naming where it lives now."""
+"""The env group's keys are each checked once, where they are defined, against the range docs/reference/env.md
+documents (generated from waterair/envs/keys.py), and an error names the key path (``env.<key>``,
+``env.sea.<key>``): a value valid for the env is never rejected deeper down (in the physics objects, the channel
+model or the link budget). A key of the first releases is an error naming where it lives now."""
 
 import dataclasses
 import math
@@ -16,7 +16,6 @@ from omegaconf import OmegaConf
 
 from waterair.core import validation
 from waterair.envs.config import EnvConfig
-from waterair.envs.groups import PHYSICS, plain
 from waterair.envs.link import link_budget
 from waterair.physics.channel import (
     Beacon,
@@ -34,9 +33,9 @@ ROW = re.compile(rf"^\| `([\w.]+)` \| [^|]* \| [^|]* \| (?:odd, )?([\[(])({NUMBE
 
 
 def documented_ranges() -> dict[str, tuple[float, float, bool, bool]]:
-    """Each scalar env key with a numeric range in docs/environment.md: (low, high, low closed, high closed)."""
+    """Each scalar env key with a numeric range in docs/reference/env.md: (low, high, low closed, high closed)."""
     ranges = {}
-    for line in (ROOT / "docs" / "environment.md").read_text().splitlines():
+    for line in (ROOT / "docs" / "reference" / "env.md").read_text().splitlines():
         match = ROW.match(line)
         if match:
             key, opening, low, high, closing = match.groups()
@@ -246,7 +245,6 @@ def test_a_physics_group_names_the_key_path_of_what_it_refuses(values, message):
 def test_the_yaml_states_each_physics_default_the_physics_object_has():
     # one default per key: conf/env/ restates the physics objects' defaults, never different ones
     from conftest import compose_config
-    from omegaconf import OmegaConf
 
     for spectrum, kind in (("jonswap", JonswapSea), ("elfouhaily", ElfouhailySea)):
         env = OmegaConf.to_container(compose_config("config", [f"env/spectrum={spectrum}"]).env, resolve=True)
@@ -275,70 +273,6 @@ def test_the_defaults_are_the_measured_slope_sea_and_the_full_channel_and_the_pa
     assert (paper.sea.spectrum, dict(paper.channel)) == ("jonswap", {"name": "single_path"})
     sea = {key: value for key, value in paper.sea.items() if key != "spectrum"}
     assert JonswapSea(**sea) == JonswapSea()  # the paper's sea as it always was: 64 × 32, γ 3.3
-
-
-DEFAULT_OF_GROUP = {"sea": ElfouhailySea(), "geometry": LinkGeometry(), "optics": Transceiver(), "beacon": Beacon()}
-"""The object whose defaults a group key has where its config names no other: the default sea, and so on."""
-OWNER = {"sea.gamma": JonswapSea(), "sea.n_freq": JonswapSea()}
-OWNER |= {f"channel.{field.name}": kind() for kind in GROUPS["channel"] for field in dataclasses.fields(kind)}
-
-
-def dataclass_default(key: str):
-    """The default the dataclasses give ``key`` (``num_envs``, ``sea.wind``, ``channel.rays``): the one source."""
-    if "." not in key:
-        return EnvConfig.__dataclass_fields__[key].default
-    group, name = key.split(".")
-    if key == "sea.spectrum":
-        return EnvConfig().sea.spectrum
-    if key == "channel.name":
-        return EnvConfig().channel.name
-    return getattr(OWNER.get(key, DEFAULT_OF_GROUP.get(group)), name)
-
-
-def same_default(documented: str, default) -> bool:
-    """Whether a docs cell's leading value (``2e4``, ``null``, ``[]``, ``clear_ocean``) states ``default``."""
-    if default is None or default == ():
-        return documented == {None: "null", (): "[]"}[default]
-    if isinstance(default, bool):
-        return documented == str(default).lower()
-    if isinstance(default, int | float):
-        return float(documented) == float(default)
-    return documented == default
-
-
-def documented_defaults() -> dict[str, str]:
-    """Each key row of docs/environment.md's table: the leading value of its default column."""
-    rows = {}
-    for line in (ROOT / "docs" / "environment.md").read_text().splitlines():
-        match = re.match(r"^\| `([\w.]+)`(?:, `([\w.]+)`)? \| [^|]* \| ([^ |]+)", line)
-        key = match and match.group(1)
-        if key and (key in RANGES or key in EnvConfig.__dataclass_fields__ or "." in key):
-            for key in filter(None, match.group(1, 2)):
-                rows[key] = match.group(3)
-    return rows
-
-
-def test_each_default_is_stated_once_by_the_dataclasses_and_the_yaml_and_docs_restate_it():
-    """The dataclasses are the one source of the env's defaults: docs/environment.md's table lists every key with
-    that default, and conf/env's YAMLs (the group, the default sea, the default channel) hold the same values,
-    but for what the entry points fill in (device, seed) or decide (compile_kernel)."""
-    documented = documented_defaults()
-    fields = {f.name for f in dataclasses.fields(EnvConfig) if f.name not in PHYSICS}
-    grouped = {f"{g}.{f.name}" for g, obj in DEFAULT_OF_GROUP.items() for f in dataclasses.fields(obj)} - {"sea.flat"}
-    grouped |= set(OWNER) | {"sea.spectrum", "channel.name"}
-    assert set(documented) == fields | grouped
-    wrong = {key: value for key, value in documented.items() if not same_default(value, dataclass_default(key))}
-    assert wrong == {}
-    conf = ROOT / "conf" / "env"
-    group = OmegaConf.to_container(OmegaConf.load(conf / "default.yaml"))
-    decided = {"device": "${device}", "seed": "${seed}", "compile_kernel": "auto"}
-    assert {key: group.pop(key) for key in decided} == decided
-    # resolved where train.py's config holds the group: the operating point's keys fill their groups' keys
-    yaml = OmegaConf.to_container(OmegaConf.create({"env": group}).env, resolve=True)
-    yaml["sea"] |= OmegaConf.to_container(OmegaConf.load(conf / "spectrum" / f"{EnvConfig().sea.spectrum}.yaml"))
-    yaml["channel"] = OmegaConf.to_container(OmegaConf.load(conf / "channel" / f"{EnvConfig().channel.name}.yaml"))
-    expected = {key: value for key, value in EnvConfig().to_mapping().items() if key not in decided}
-    assert {key: plain(value) for key, value in yaml.items()} == {key: plain(v) for key, v in expected.items()}
 
 
 def test_a_policy_reads_its_own_columns_frame_by_frame_out_of_a_wider_observation():

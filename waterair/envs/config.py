@@ -1,16 +1,16 @@
 """Validated configuration of :class:`waterair.envs.env.WaterAirEnv` (the ``env`` config group).
 
-The physics is held as the physics' own objects, one nested group each: the sea (``env.sea.wind``,
-a :class:`~waterair.physics.sea.JonswapSea` or :class:`~waterair.physics.sea.ElfouhailySea`), the
-link's geometry (``env.geometry.offset_ratio``, :class:`~waterair.physics.channel.LinkGeometry`) and
-the optics (``env.optics.aperture_diameter``, :class:`~waterair.physics.channel.Transceiver`) and the
-drone's beacon (``env.beacon.divergence``, :class:`~waterair.physics.channel.Beacon`). Each
-physics value is validated once, where it is defined; the interface keys (``env.dt``, ...) are
-validated here. Every error names the key path (``env.sea.wind``), the value and the allowed range;
-docs/environment.md lists each key with its unit, default and range. The channel is a group too
-(``env.channel.nodes``, :mod:`waterair.physics.channel.registry`), chosen by ``env/channel=``. A key of the first
-releases (``env.wind``, ``env.lattice_nodes``) is an error naming where it lives now; ``python -m
-waterair.cli.migrate RUN`` rewrites an old run's config.
+The physics is held as the physics' own objects, one nested group each: the sea (``env.sea.wind``, a
+:class:`~waterair.physics.sea.JonswapSea` or :class:`~waterair.physics.sea.ElfouhailySea`), the link's geometry
+(``env.geometry.offset_ratio``, :class:`~waterair.physics.channel.LinkGeometry`) and the optics
+(``env.optics.aperture_diameter``, :class:`~waterair.physics.channel.Transceiver`) and the drone's beacon
+(``env.beacon.divergence``, :class:`~waterair.physics.channel.Beacon`). Each physics value is validated once, where
+it is defined; the interface keys (``env.dt``, ...) are validated here. Every error names the key path
+(``env.sea.wind``), the value and the allowed range; docs/reference/env.md (generated from these defaults, ``make
+docs``) lists each key with its unit, default and range. The channel is a group too (``env.channel.nodes``,
+:mod:`waterair.physics.channel.registry`), chosen by ``env/channel=``. A key of the first releases (``env.wind``,
+``env.lattice_nodes``) is an error naming where it lives now; ``python -m waterair.cli.migrate RUN`` rewrites an old
+run's config.
 """
 
 from __future__ import annotations

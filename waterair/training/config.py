@@ -16,6 +16,7 @@ from waterair.core.threads import AUTO as AUTO_THREADS
 from waterair.core.threads import check_threads
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.config import EnvConfig
+from waterair.envs.kernel import DIVERGENCE_SPAN
 from waterair.envs.link import link_budget
 from waterair.envs.rewards import Reward
 from waterair.training.algorithms import ALGORITHMS
@@ -37,6 +38,8 @@ NETWORKS = ("mlp",)
 OmegaConf.register_new_resolver("or_else", lambda given, default: default if given is None else given, replace=True)
 OmegaConf.register_new_resolver("unless_set", lambda given, value: value if given is None else None, replace=True)
 # A Slurm job asks for one GPU when the run asks for cuda (hydra.launcher.gpus_per_node, docs/training.md).
+# the divergences every link may draw with env/observation=beacon: the span the divergence feature is scaled over
+OmegaConf.register_new_resolver("divergence_span", lambda: list(DIVERGENCE_SPAN), replace=True)
 OmegaConf.register_new_resolver("gpus_for_device", lambda device: 1 if device == "cuda" else None, replace=True)
 
 

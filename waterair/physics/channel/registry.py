@@ -14,8 +14,8 @@ it builds its :class:`~.model.ChannelModel` for a sea and the optics:
 * ``counting`` (:class:`CountingChannel`): :class:`~.montecarlo.MonteCarlo`, the hit-counting tracer on any
   sea: the local estimate's own check where counting is precise (a large aperture, a wide beam).
 
-A new model is one module, one class here with its entry in :data:`CHANNELS`, and one YAML in
-``conf/env/channel/``.
+A new model is one module and one class here with its entry in :data:`CHANNELS`; ``make docs`` writes its option
+in ``conf/env/channel/`` from the class's defaults.
 """
 
 from __future__ import annotations
