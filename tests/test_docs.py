@@ -1,11 +1,11 @@
 """The hand-written documentation stays short, undated and whole.
 
-README.md is for a newcomer: at most 150 lines and no dates (a measurement is written once, with its
-machine and load, in docs/benchmarks.md). README.md and docs/*.md together stay under 25,000 words,
-counted as ``wc -w`` counts them (whitespace-separated tokens). docs/results/ is not counted: evaluate.py
-generates its report.md and metrics files. Every section the code, the tests or the docs cite by name
-(``docs/environment.md, "Sensing"``) or by number (``docs/model.md §4.3``) exists, as a heading or as a
-paragraph's bold lead (``**Start.**``).
+README.md is for a newcomer: at most 150 lines and no dates (a measurement is written once, with its machine and
+load, in docs/benchmarks.md, which names no commits). README.md and docs/*.md together stay under 25,000 words,
+counted as ``wc -w`` counts them (whitespace-separated tokens). docs/results/ is not counted: evaluate.py generates
+its report.md and metrics files. Every section the code, the tests or the docs cite by name (``docs/environment.md,
+"Sensing"``) or by number (``docs/model.md §4.3``) exists, as a heading or as a paragraph's bold lead
+(``**Start.**``).
 """
 
 import re
@@ -99,6 +99,15 @@ def test_the_readme_is_short_and_undated():
 def test_the_hand_written_docs_stay_under_the_word_budget():
     counts = {str(path.relative_to(ROOT)): words([path]) for path in hand_written_docs()}
     assert sum(counts.values()) <= WORDS, counts
+
+
+COMMIT = re.compile(r"\b(?=[0-9a-f]*\d)(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b")
+
+
+def test_the_benchmarks_hold_the_latest_values_not_the_commits_that_measured_them():
+    """docs/benchmarks.md is a reference: the history, with its commits, is git's."""
+    assert COMMIT.findall((ROOT / "docs" / "benchmarks.md").read_text()) == []
+    assert COMMIT.findall("measured at 1d006cd, then c1eafe8") == ["1d006cd", "c1eafe8"]
 
 
 def test_no_doc_heading_carries_a_date():
