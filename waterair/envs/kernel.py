@@ -59,7 +59,11 @@ class Record(NamedTuple):
 
 def advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
     """Gimbals, action history and clock after ``action`` ``[B, 4]`` (already clipped to [-1, 1])."""
-    c = c.for_links(state.divergence)  # each row's sensor latency, where replicas sense differently
+    return _advance(c.for_links(state.divergence), state, action)
+
+
+def _advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
+    """:func:`advance` with ``c`` already for the links (each row's latency, where replicas sense otherwise)."""
     if c.replica_actions:  # replica k's rows [k·n, (k+1)·n) act its own way: each way on every row, then chosen
         ways = [aimed_tilts(c, actions, state, action) for actions in c.replica_actions]
         way = torch.tensor(c.replica_choice, device=action.device)[c.replica_of_rows(action)].unsqueeze(-1)
@@ -301,7 +305,11 @@ def conclude(
 ) -> StepResult:
     """The new state and the step's outputs, given the gimbals ``moved`` and the path ``solution``. The
     channel's light is computed here unless it comes as ``light`` (a model that does not compile)."""
-    c = c.for_links(state.divergence)
+    return _conclude(c.for_links(state.divergence), state, moved, solution, noise, light)
+
+
+def _conclude(c: StepConstants, state: StepState, moved: Moved, solution: Iterate, noise, light) -> StepResult:
+    """:func:`conclude` with ``c`` already for the links."""
     tx, rx = state.tx_position, state.rx_position
     path = finish_path(solution, tx, rx, c.optics.indices)
     if light is None:
@@ -356,8 +364,9 @@ def step(c: StepConstants, state: StepState, action: torch.Tensor, noise: Sensor
     (:func:`waterair.physics.paths.fixed.finish_unconverged`) and concluding again. ``noise`` is the
     sensor's draw for this step (:meth:`Sensor.draw`), or None for a noiseless one.
     """
-    moved = advance(c, state, action)
-    return conclude(c, state, moved, solve(c, state, moved.time), noise)
+    links = c.for_links(state.divergence)  # once for the step's two stages
+    moved = _advance(links, state, action)
+    return _conclude(links, state, moved, solve(c, state, moved.time), noise, None)
 
 
 def finish(
