@@ -13,6 +13,7 @@ from omegaconf import OmegaConf
 from waterair.agents.checkpoint import CheckpointError, policy_state, save_policy
 from waterair.agents.networks import make_actor
 from waterair.envs.operating_point import FIXED
+from waterair.evaluation.comparisons import COMPARISON_KEYS
 from waterair.evaluation.figures import physics_figures
 from waterair.evaluation.metrics import METRICS
 from waterair.evaluation.per_divergence import serving
@@ -162,7 +163,7 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert {p.name for p in written} >= {"metrics.json", "metrics.csv", "report.md"}
 
     data = json.loads((tmp_path / "metrics.json").read_text())
-    assert data["schema_version"] == 5
+    assert data["schema_version"] == 6
     assert data["link"]["power_w"] == 0.05 and data["link"]["fec_power"] == pytest.approx(3.16e-8, rel=0.01)
     labels = [p["label"] for p in data["policies"]]
     references = ["tracking", "beacon_tracker", "aoa_tracker", "intensity_dither", "flat_snell", "straight_facing"]
@@ -179,13 +180,23 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert len(data["rows"]) == sum(points.values()) * len(labels)
     for row in data["rows"]:
         assert set(row) == set(ROW_KEYS)
-        for name in METRICS:
+        for name in (*METRICS, "rate_held", "rate_held_999"):
             assert row[f"{name}_lo"] <= row[name] + 1e-12 and row[name] <= row[f"{name}_hi"] + 1e-12, (row, name)
         assert all(math.isfinite(row[name]) for name in ("ber", "outage", "rate")), row
         assert 0.0 <= row["ber"] <= 0.5 and 0.0 <= row["outage"] <= 1.0 and row["rate"] >= 0.0, row
         # the upper bound's outage is at most every policy's: the same seas, the most light at each step
         bound = next(r for r in data["rows"] if r["policy"] == "upper_bound" and _same_point(r, row))
         assert bound["outage"] <= row["outage"] and bound["ber"] <= row["ber"] + 1e-15, row
+    # the learned policy against the controller its residual actions correct, sensing as it does, at every point
+    assert [(c["scenario"], c["policy"], c["base"]) for c in data["comparisons"]] == [
+        (name, labels[1], realistic[0]) for name, count in points.items() for _ in range(count)
+    ]
+    for comparison in data["comparisons"]:
+        assert set(comparison) == set(COMPARISON_KEYS)
+        row = next(r for r in data["rows"] if r["policy"] == labels[1] and _same_point(r, comparison))
+        base = next(r for r in data["rows"] if r["policy"] == realistic[0] and _same_point(r, comparison))
+        assert comparison["ratio_to_ub_diff"] == pytest.approx(row["ratio_to_ub"] - base["ratio_to_ub"], abs=1e-12)
+        assert comparison["ratio_to_ub_diff_lo"] <= comparison["ratio_to_ub_diff"] <= comparison["ratio_to_ub_diff_hi"]
     csv_lines = (tmp_path / "metrics.csv").read_text().splitlines()
     assert csv_lines[0].split(",") == list(ROW_KEYS) and len(csv_lines) == 1 + len(data["rows"])
 
@@ -204,6 +215,11 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     s2 = next(r for r in data["rows"] if r["scenario"] == "S2" and r["policy"] == labels[1])
     assert s2["acquisition_ratio_to_ub"] == s2["ratio_to_ub"] and math.isnan(s2["tracking_rate_held_999"])
     assert "Acquisition (the first 0.5 s of each realisation) and tracking (the rest) apart" in report
+    assert "## Learned policies against their classical bases" in report
+    assert (
+        f"| S1 | 12 m/s, 10% | {labels[1]} | {realistic[0]} | {data['comparisons'][0]['ratio_to_ub_diff']:+.4f} ["
+        in report
+    )
 
 
 def _same_point(a: dict, b: dict) -> bool:

@@ -6,13 +6,18 @@ import pytest
 import torch
 
 from waterair.evaluation.metrics import (
+    COMPARED,
+    HELD,
     METRICS,
     PHASE_METRICS,
     fade_probability,
+    held_draws,
+    paired_comparison,
     phase_metrics,
     ratio_to_upper_bound,
     scenario_metrics,
     sigma2_diff,
+    verdict,
 )
 from waterair.physics.link import LinkBudget, fec_power, link_performance
 
@@ -69,8 +74,8 @@ def test_scenario_metrics_point_values_match_the_plain_definitions():
     reference = 1.0 + torch.rand(8, generator=generator, dtype=torch.float64)
     valid = torch.rand(8, 50, generator=generator) > 0.2
     m = scenario_metrics(gain, upper, reference, valid)
-    named = (*METRICS, "received_power_dbm")
-    assert {f"{k}{suffix}" for k in named for suffix in ("", "_lo", "_hi")} | {"rate_held", "rate_held_999"} == set(m)
+    named = (*METRICS, "received_power_dbm", *HELD)
+    assert {f"{k}{suffix}" for k in named for suffix in ("", "_lo", "_hi")} == set(m)
     assert m["mean_gain"] == pytest.approx(gain.mean().item(), rel=1e-12)
     assert m["ratio_to_ub"] == pytest.approx((gain.mean() / upper.mean()).item(), rel=1e-12)
     assert m["sigma2_diff"] == pytest.approx((upper - gain).var(unbiased=False).item(), rel=1e-9)
@@ -126,7 +131,65 @@ def test_the_acquisition_and_the_tracking_are_measured_apart():
     for name in PHASE_METRICS:
         assert phases[f"tracking_{name}"] == tracking[name], name
     assert phases["acquisition_rate"] == 0.0 < phases["tracking_rate_held_999"]
-    assert {"tracking_rate_lo", "acquisition_outage_hi"} <= set(phases) and "tracking_rate_held_lo" not in phases
+    assert {"tracking_rate_lo", "acquisition_outage_hi", "tracking_rate_held_lo"} <= set(phases)
     # a trace no longer than the acquisition has no tracking
     short = phase_metrics(gain[:, :8], upper[:, :8], reference, valid[:, :8], 0.05, link=link)
     assert math.isnan(short["tracking_rate_held"]) and short["acquisition_ratio_to_ub"] == 0.0
+
+
+def _traces(gain: torch.Tensor) -> tuple:
+    """A policy's traces as the metrics take them: its gain, an upper bound above it, G_0 = 1, every path valid."""
+    return gain, gain.max() + torch.ones_like(gain), torch.ones(gain.shape[0]), torch.ones_like(gain, dtype=torch.bool)
+
+
+def test_the_held_rates_bootstrap_pools_each_resamples_seas_as_a_direct_pooling_does():
+    """Each resample's held rate (a weighted quantile over the lowest steps) against the resample built by hand:
+    the drawn realisations' steps pooled, sorted, the nearest-rank (1 − share) quantile, in float64."""
+    generator = torch.Generator().manual_seed(5)
+    rates = torch.rand(12, 50, generator=generator, dtype=torch.float64) * torch.rand(12, 1, generator=generator)
+    picks = torch.randint(12, (40, 12), generator=generator)
+    for share in (0.99, 0.9, 0.5):
+        drawn = held_draws(rates, share, picks)
+        for k in range(picks.shape[0]):
+            pooled = rates[picks[k]].flatten().sort().values
+            assert drawn[k].item() == pooled[math.ceil((1.0 - share) * pooled.numel()) - 1].item()
+
+
+def test_every_row_bounds_its_held_rates_and_one_sea_leaves_them_open():
+    gain = torch.rand(20, 60, generator=torch.Generator().manual_seed(2), dtype=torch.float64) * 1e-3
+    m = scenario_metrics(*_traces(gain))
+    for name in HELD:
+        assert m[f"{name}_lo"] <= m[name] <= m[f"{name}_hi"] and m[f"{name}_lo"] < m[f"{name}_hi"], name
+    one = scenario_metrics(*_traces(gain[:1]))
+    assert all(math.isnan(one[f"{name}_lo"]) for name in HELD)
+
+
+def test_a_policy_against_itself_differs_by_exactly_nothing_and_against_a_scaled_copy_by_the_scale():
+    gain = torch.rand(16, 40, generator=torch.Generator().manual_seed(4), dtype=torch.float64) * 1e-3
+    same = paired_comparison(_traces(gain), _traces(gain))
+    for name in COMPARED:
+        assert same[f"{name}_diff"] == same[f"{name}_diff_lo"] == same[f"{name}_diff_hi"] == 0.0, name
+    upper = _traces(gain)[1]
+    scaled = paired_comparison((1.1 * gain, *_traces(gain)[1:]), (gain, upper, *_traces(gain)[2:]))
+    for name in ("mean_gain", "ratio_to_ub"):
+        assert scaled[f"{name}_ratio"] == pytest.approx(1.1)
+        assert scaled[f"{name}_ratio_lo"] <= 1.1 + 1e-12 and 1.1 - 1e-12 <= scaled[f"{name}_ratio_hi"], name
+    assert (
+        scaled["mean_gain_diff_lo"] > 0 and verdict(scaled["mean_gain_diff_lo"], scaled["mean_gain_diff_hi"]) == "ahead"
+    )
+
+
+def test_pairing_cancels_what_the_shared_seas_do_to_both_policies():
+    """Two policies whose gains follow the same seas (a level per realisation, spread 50 %) and differ by 1 %:
+    paired, the difference is known far better than either policy's mean, and the later is ahead."""
+    generator = torch.Generator().manual_seed(6)
+    seas = 1.0 + 0.5 * torch.rand(24, 1, generator=generator, dtype=torch.float64)
+    a = seas * (1.0 + 0.02 * torch.rand(24, 30, generator=generator, dtype=torch.float64)) * 1e-3
+    b = 1.01 * a
+    alone = scenario_metrics(*_traces(a))
+    paired = paired_comparison(_traces(b), (a, *_traces(b)[1:]))
+    width = paired["mean_gain_diff_hi"] - paired["mean_gain_diff_lo"]
+    assert width < 0.1 * (alone["mean_gain_hi"] - alone["mean_gain_lo"])
+    assert verdict(paired["mean_gain_ratio_lo"], paired["mean_gain_ratio_hi"], even=1.0) == "ahead"
+    assert verdict(-1.0, 2.0) == "not separable" and verdict(-2.0, -1.0) == "behind"
+    assert verdict(math.nan, math.nan) == "not separable"

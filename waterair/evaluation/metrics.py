@@ -62,8 +62,12 @@ METRICS = (
 """What :func:`scenario_metrics` reports, each with ``_lo`` / ``_hi`` bounds: ``ber`` the mean bit error
 rate, ``outage`` the share of steps with BER above the FEC limit, ``rate`` the mean bit rate at the FEC
 limit (bit/s), all of the link budget. Beside them, :func:`scenario_metrics` gives ``received_power_dbm`` (the mean
-received power, with bounds), ``rate_held`` and ``rate_held_999`` (the rates held in :data:`HELD_SHARE` and
-:data:`STRICT_HELD_SHARE` of steps, no bounds)."""
+received power) and ``rate_held`` and ``rate_held_999`` (the rates held in :data:`HELD_SHARE` and
+:data:`STRICT_HELD_SHARE` of steps), each with bounds too."""
+HELD = {"rate_held": HELD_SHARE, "rate_held_999": STRICT_HELD_SHARE}
+"""The held rates and the share of steps each is held in."""
+COMPARED = ("ratio_to_ub", "mean_gain", "rate", "outage", "rate_held", "rate_held_999")
+"""What :func:`paired_comparison` compares of two policies on the same seas."""
 
 
 def scenario_metrics(
@@ -89,29 +93,93 @@ def scenario_metrics(
     resampled, which is exact and costs O(resamples × R).
     Also ``received_power_dbm`` (10 log10 of the mean P_r in mW, bounds from the mean gain's: P_r is linear
     in G), ``rate_held`` and ``rate_held_999``, the bit rates sustained in :data:`HELD_SHARE` and
-    :data:`STRICT_HELD_SHARE` of all R·T steps (percentiles of steps, given without bounds).
+    :data:`STRICT_HELD_SHARE` of all R·T steps (percentiles of steps; their bounds those of the same resamples'
+    pooled steps, :func:`held_draws`).
     """
     link = link or LinkBudget()
-    delivered = link_performance(gain.double(), link)
-    stats = _realisation_sums(gain, upper, reference, valid, delivered)
-    point = _metrics_from_sums(stats.sum(0, keepdim=True), steps=gain.shape[-1] * gain.shape[0])
-    generator = torch.Generator().manual_seed(seed)
-    count = stats.shape[0]
-    picks = torch.randint(count, (resamples, count), generator=generator)
-    draws = _metrics_from_sums(stats[picks].sum(1), steps=gain.shape[-1] * count)
-    tail = (1.0 - level) / 2.0
-    bounds = torch.quantile(draws, torch.tensor([tail, 1.0 - tail], dtype=torch.float64), dim=0)
+    point, draws = _point_and_draws((gain, upper, reference, valid), link, _picks(gain.shape[0], resamples, seed))
+    count, tail = gain.shape[0], (1.0 - level) / 2.0
+    names = list(draws)
+    bounds = torch.quantile(torch.stack(list(draws.values()), -1), torch.tensor([tail, 1.0 - tail]).double(), dim=0)
     out = {}
-    for index, name in enumerate(METRICS):
-        out[name] = point[0, index].item()
+    for index, name in enumerate(names):
+        out[name] = point[name]
         out[f"{name}_lo"] = bounds[0, index].item() if count > 1 else float("nan")
         out[f"{name}_hi"] = bounds[1, index].item() if count > 1 else float("nan")
     for suffix in ("", "_lo", "_hi"):
         out[f"received_power_dbm{suffix}"] = power_dbm(out[f"mean_gain{suffix}"] * link.received_power_per_gain)
-    rates = delivered.max_bit_rate.flatten()
-    out["rate_held"] = torch.quantile(rates, 1.0 - HELD_SHARE).item()
-    out["rate_held_999"] = torch.quantile(rates, 1.0 - STRICT_HELD_SHARE).item()
     return out
+
+
+def _picks(count: int, resamples: int, seed: int) -> torch.Tensor:
+    """The realisations each of ``resamples`` bootstrap draws takes ``[resamples, count]``, seeded: the same for
+    every policy of a point (the same seed and count), so that their intervals are paired."""
+    return torch.randint(count, (resamples, count), generator=torch.Generator().manual_seed(seed))
+
+
+def _point_and_draws(traces, link: LinkBudget, picks: torch.Tensor) -> tuple[dict[str, float], dict]:
+    """The point values of :data:`METRICS` and the held rates of ``traces`` (gain, upper, reference, valid
+    ``[R, T]``), and each one's bootstrap draws ``[resamples]`` over ``picks``."""
+    gain, upper, reference, valid = traces
+    delivered = link_performance(gain.double(), link)
+    stats = _realisation_sums(gain, upper, reference, valid, delivered)
+    steps = gain.shape[-1] * gain.shape[0]
+    means, resampled = (
+        _metrics_from_sums(stats.sum(0, keepdim=True), steps),
+        _metrics_from_sums(stats[picks].sum(1), steps),
+    )
+    point = {name: means[0, index].item() for index, name in enumerate(METRICS)}
+    draws = {name: resampled[:, index] for index, name in enumerate(METRICS)}
+    rates = delivered.max_bit_rate.reshape(gain.shape[0], -1)
+    for name, share in HELD.items():
+        point[name] = torch.quantile(rates.flatten(), 1.0 - share).item()
+        draws[name] = held_draws(rates, share, picks)
+    return point, draws
+
+
+def held_draws(rates: torch.Tensor, share: float, picks: torch.Tensor) -> torch.Tensor:
+    """The rate held in ``share`` of the steps of each bootstrap resample ``[S]``: of ``rates`` ``[R, T]``, the
+    realisations ``picks`` ``[S, R]`` draws, their steps pooled, the (1 − share) quantile by nearest rank. A
+    weighted quantile of the sorted steps, each weighted by the times its realisation is drawn, over the fewest
+    lowest steps that hold it in every resample."""
+    count, steps = rates.shape
+    weights = torch.zeros(picks.shape[0], count, dtype=torch.int64).scatter_add_(1, picks, torch.ones_like(picks))
+    values, order = rates.reshape(-1).sort()
+    owner, rank = order // steps, max(1, math.ceil((1.0 - share) * count * steps))
+    prefix = min(values.numel(), 4 * rank)
+    while True:  # the lowest steps cumulate the rank within 4 × rank in practice; more where a resample is skewed
+        cumulative = weights[:, owner[:prefix]].cumsum(1)
+        if prefix == values.numel() or bool((cumulative[:, -1] >= rank).all()):
+            return values[(cumulative < rank).sum(1).clamp(max=prefix - 1)]
+        prefix = min(values.numel(), 2 * prefix)
+
+
+def paired_comparison(
+    a, b, *, link: LinkBudget | None = None, level: float = 0.95, resamples: int = 2000, seed: int = 0
+) -> dict[str, float]:
+    """Policy ``a`` against ``b`` on the same seas, each ``(gain, upper, reference, valid)`` ``[R, T]`` as
+    :func:`scenario_metrics` takes them: of each of :data:`COMPARED`, the difference ``<name>_diff`` and the ratio
+    ``<name>_ratio`` (a over b; NaN over 0), each with ``_lo`` / ``_hi``, a paired bootstrap's percentile
+    interval: every resample draws the same realisations for both (the picks :func:`scenario_metrics` draws with
+    ``seed``), so that what the shared seas do to both cancels."""
+    link, picks, tail = link or LinkBudget(), _picks(a[0].shape[0], resamples, seed), (1.0 - level) / 2.0
+    (point_a, draws_a), (point_b, draws_b) = (_point_and_draws(traces, link, picks) for traces in (a, b))
+    quantiles = torch.tensor([tail, 1.0 - tail], dtype=torch.float64)
+    out = {}
+    for name in COMPARED:
+        ratio_point = point_a[name] / point_b[name] if point_b[name] != 0 else math.nan
+        ratios = torch.where(draws_b[name] != 0, draws_a[name] / draws_b[name], math.nan)
+        for kind, value, draws in (("diff", point_a[name] - point_b[name], draws_a[name] - draws_b[name]),
+                                   ("ratio", ratio_point, ratios)):  # fmt: skip
+            lo, hi = torch.quantile(draws, quantiles).tolist() if picks.shape[1] > 1 else (math.nan, math.nan)
+            out |= {f"{name}_{kind}": value, f"{name}_{kind}_lo": lo, f"{name}_{kind}_hi": hi}
+    return out
+
+
+def verdict(low: float, high: float, even: float = 0.0) -> str:
+    """What an interval [``low``, ``high``] of a difference (``even`` 0) or a ratio (``even`` 1) allows one to
+    say: ``ahead`` where it lies above ``even``, ``behind`` below, else ``not separable`` (NaN too)."""
+    return "ahead" if low > even else "behind" if high < even else "not separable"
 
 
 def phase_metrics(
@@ -140,7 +208,7 @@ def phase_metrics(
             )
         )
         for name in PHASE_METRICS:
-            for suffix in ("", "_lo", "_hi") if name in METRICS else ("",):
+            for suffix in ("", "_lo", "_hi") if name in METRICS or name in HELD else ("",):
                 out[f"{phase}_{name}{suffix}"] = metrics.get(f"{name}{suffix}", math.nan)
     return out
 

@@ -11,17 +11,19 @@ from omegaconf import DictConfig, OmegaConf
 
 from waterair.core.files import atomic_write_csv, atomic_write_text
 from waterair.evaluation import plots
+from waterair.evaluation.comparisons import COMPARISON_KEYS
 from waterair.evaluation.divergence import best_divergences, learned_gains
 from waterair.evaluation.figures import physics_figures
-from waterair.evaluation.metrics import ACQUISITION_SECONDS, METRICS, PHASE_METRICS
+from waterair.evaluation.metrics import ACQUISITION_SECONDS, HELD, METRICS, PHASE_METRICS
 from waterair.evaluation.runner import UPPER_BOUND, Evaluation
 from waterair.physics.link import fec_power
 
-SCHEMA_VERSION = 5
-"""5: ``rate_held_999`` and the acquisition's and the tracking's metrics apart (``acquisition_<name>``,
-``tracking_<name>``) per row; 4: ``divergence``, ``received_power_dbm`` and ``rate_held`` per row, S5 and its
-``power_sweep``; 3: the link budget's ``ber``, ``outage`` and ``rate`` per row, ``link`` at the top; 2's
-``outage`` (P(G < 0.1 G_0)) is ``fade_10db``."""
+SCHEMA_VERSION = 6
+"""6: ``rate_held`` and ``rate_held_999`` with their bounds, per row and per phase, and ``comparisons``, each learned
+policy against its classical base at every point; 5: ``rate_held_999`` and the acquisition's and the tracking's
+metrics apart (``acquisition_<name>``, ``tracking_<name>``) per row; 4: ``divergence``, ``received_power_dbm`` and
+``rate_held`` per row, S5 and its ``power_sweep``; 3: the link budget's ``ber``, ``outage`` and ``rate`` per row,
+``link`` at the top; 2's ``outage`` (P(G < 0.1 G_0)) is ``fade_10db``."""
 AXES = ("wind", "offset_ratio", "offset_azimuth_deg")
 """The three coordinates of a scenario point, in order."""
 ROW_KEYS = (
@@ -32,14 +34,12 @@ ROW_KEYS = (
     "divergence",
     "policy",
     "kind",
-    *(f"{name}{suffix}" for name in (*METRICS, "received_power_dbm") for suffix in ("", "_lo", "_hi")),
-    "rate_held",
-    "rate_held_999",
+    *(f"{name}{suffix}" for name in (*METRICS, "received_power_dbm", *HELD) for suffix in ("", "_lo", "_hi")),
     *(
         f"{phase}_{name}{suffix}"
         for phase in ("acquisition", "tracking")
         for name in PHASE_METRICS
-        for suffix in (("", "_lo", "_hi") if name in METRICS else ("",))
+        for suffix in (("", "_lo", "_hi") if name in METRICS or name in HELD else ("",))
     ),
     "reference_gain",
     "realisations",
@@ -90,6 +90,7 @@ def _write_json(result: Evaluation, path: Path, cfg: DictConfig) -> Path:
         ],
         "rows": [{key: row[key] for key in ROW_KEYS} for row in result.rows],
         "power_sweep": result.power_rows,
+        "comparisons": [{key: row[key] for key in COMPARISON_KEYS} for row in result.comparisons],
     }
     return atomic_write_text(path, json.dumps(data, indent=2, allow_nan=True))
 
@@ -164,8 +165,8 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
             point = scenario.points[0]
             lines += [
                 "| policy | mean G (m⁻²) | ratio to UB | σ²_diff (m⁻⁴) | outage | mean BER | rate (Mbit/s) "
-                "| G < 0.1 G_0 | valid paths |",
-                "|---|---|---|---|---|---|---|---|---|",
+                "| held 99 % (Mbit/s) | G < 0.1 G_0 | valid paths |",
+                "|---|---|---|---|---|---|---|---|---|---|",
             ]
             for policy in result.policies:
                 r = result.row(scenario.name, policy["label"], point)
@@ -173,7 +174,7 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
                     f"| {policy['label']} | {r['mean_gain']:.4g} [{r['mean_gain_lo']:.4g}, {r['mean_gain_hi']:.4g}] "
                     f"| {r['ratio_to_ub']:.3f} | {r['sigma2_diff']:.3g} "
                     f"| {r['outage']:.3%} [{r['outage_lo']:.3%}, {r['outage_hi']:.3%}] | {r['ber']:.2g} "
-                    f"| {r['rate'] / 1e6:.3g} | {r['fade_10db']:.2%} | {r['valid_share']:.1%} |"
+                    f"| {r['rate'] / 1e6:.3g} | {_held(r)} | {r['fade_10db']:.2%} | {r['valid_share']:.1%} |"
                 )
             lines += ["", *_phase_lines(result, scenario, point)]
         else:
@@ -192,6 +193,7 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
                 shown = f"{value:.0%}" if scenario.axis == "offset_ratio" else f"{value:g}"
                 lines.append(f"| {shown} | " + " | ".join(cells) + " |")
         lines.append("")
+    lines += _comparison_lines(result)
     lines += ["## Figures", ""]
     for figure in figures:
         lines += [f"![{figure.stem}]({figure.name})", ""]
@@ -229,7 +231,8 @@ def _divergence_lines(result: Evaluation, scenario) -> list[str]:
     lines = [
         f"The study's link: {_link_line(link)} (at ω_D = {scenario.divergences[0] * 1e3:g} mrad; a narrower beam "
         "puts more power on the receiver per unit of gain, J_0/P_t = 2/(π ω_D′²)). Each cell: mean bit rate at "
-        "the FEC limit (Mbit/s), the rates held in 99 % and in 99.9 % of steps, and the outage.",
+        "the FEC limit (Mbit/s), the rates held in 99 % (its interval in brackets) and in 99.9 % of steps, and the "
+        "outage.",
         "",
     ]
     for wind, offset, azimuth in scenario.points:
@@ -238,8 +241,7 @@ def _divergence_lines(result: Evaluation, scenario) -> list[str]:
         for divergence in scenario.divergences:
             rows = [result.row(scenario.name, label, (wind, offset, azimuth), divergence) for label in labels]
             cells = [
-                f"{r['rate'] / 1e6:.3g}<br>{r['rate_held'] / 1e6:.3g}<br>{r['rate_held_999'] / 1e6:.3g}<br>"
-                f"{r['outage']:.1%}"
+                f"{r['rate'] / 1e6:.3g}<br>{_held(r)}<br>{r['rate_held_999'] / 1e6:.3g}<br>{r['outage']:.1%}"
                 for r in rows
             ]
             lines.append(f"| {divergence * 1e3:g} | " + " | ".join(cells) + " |")
@@ -282,6 +284,37 @@ def _divergence_lines(result: Evaluation, scenario) -> list[str]:
                 floor = keyed[(label, offset, powers[0])]["no_light"]
                 lines.append(f"| {label} | {offset:.0%} | " + " | ".join(cells) + f" | {floor:.2%} |")
     return [*lines, ""]
+
+
+def _held(row: dict, name: str = "rate_held") -> str:
+    """A held rate in Mbit/s with its interval."""
+    return f"{row[name] / 1e6:.3g} [{row[f'{name}_lo'] / 1e6:.3g}, {row[f'{name}_hi'] / 1e6:.3g}]"
+
+
+def _comparison_lines(result: Evaluation) -> list[str]:
+    """Each learned policy against its classical base at every point: the paired differences and ratios."""
+    if not result.comparisons:
+        return []
+    lines = [
+        "## Learned policies against their classical bases",
+        "",
+        "Each learned policy against the controller its residual actions correct, sensing as it does, on the same "
+        "seas: the difference in ratio to the upper bound and the ratio of the rates held in 99 % of steps, each "
+        "with its 95 % paired bootstrap interval (both policies' seas resampled together). *ahead* or *behind* "
+        "where the held rates' interval excludes 1, else *not separable*.",
+        "",
+    ]
+    rows = []
+    for c in result.comparisons:
+        point = f"{c['wind']:g} m/s, {c['offset_ratio']:.0%}" + (
+            f", {c['divergence'] * 1e3:g} mrad" if result.scenario(c["scenario"]).divergences else ""
+        )
+        rows.append((c["scenario"], point, c["policy"], c["base"],
+                     f"{c['ratio_to_ub_diff']:+.4f} [{c['ratio_to_ub_diff_lo']:+.4f}, {c['ratio_to_ub_diff_hi']:+.4f}]",
+                     f"{c['rate_held_ratio']:.3f} [{c['rate_held_ratio_lo']:.3f}, {c['rate_held_ratio_hi']:.3f}]",
+                     c["rate_held_verdict"]))  # fmt: skip
+    header = ("scenario", "point", "learned", "base", "ratio to UB: difference", "held 99 %: ratio", "held rate")
+    return [*lines, *_table(header, rows), ""]
 
 
 def _table(header, rows) -> list[str]:

@@ -27,6 +27,7 @@ from waterair.core.validation import check_choice, check_int, check_range
 from waterair.envs.config import EnvConfig
 from waterair.envs.link import link_budget
 from waterair.envs.stepper import varying_environments
+from waterair.evaluation.comparisons import base_labels, comparison_rows
 from waterair.evaluation.compiling import compiled_group, note_compiled
 from waterair.evaluation.divergence import at_divergence, outage_against_power, scenario_link
 from waterair.evaluation.groups import actor_of, policy_groups, side_by_side
@@ -78,6 +79,7 @@ class Evaluation:
     links: dict[tuple[str, float], LinkBudget] = field(default_factory=dict)
     """(scenario, divergence) → its link budget where it is not ``link`` (S5)."""
     power_rows: list[dict] = field(default_factory=list)  # S5's outage against transmit power
+    comparisons: list[dict] = field(default_factory=list)  # each learned policy against its base, per point
     seconds: float = 0.0
 
     @property
@@ -95,6 +97,10 @@ class Evaluation:
                 if divergence is None or row["divergence"] == divergence:
                     return row
         raise KeyError((scenario, policy, point, divergence))
+
+    def scenario(self, name: str) -> Scenario:
+        """The scenario named ``name``."""
+        return next(scenario for scenario in self.scenarios if scenario.name == name)
 
     def link_of(self, scenario: str, divergence: float | None = None) -> LinkBudget:
         """The link budget ``scenario``'s rows were measured with (at ``divergence``)."""
@@ -242,6 +248,10 @@ def evaluate(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None, p
         link=plan.link,
         links=plan.links,
     )
+    bases = base_labels(plan.groups, plan.learned)
+    for entry in result.policies:
+        if entry["kind"] == "learned" and entry["label"] in bases:
+            entry["base"] = bases[entry["label"]]
     progress(f"Evaluating in {plan.processes}")
     _run(plan, result, progress)
     result.seconds = time.perf_counter() - clock
@@ -329,6 +339,9 @@ def _collect(
                     "seed": scenario.seed,
                 }
             )
+        where = {"scenario": scenario.name, "wind": wind, "offset_ratio": offset, "offset_azimuth_deg": azimuth}
+        where["divergence"] = divergence
+        result.comparisons += comparison_rows(result.policies, runs, index, where, link, bootstrap)
     sweep = scenario.power_sweep
     if scenario.divergences and (sweep is None or not math.isclose(sweep.divergence, divergence)):
         return
