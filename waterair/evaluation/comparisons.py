@@ -13,12 +13,10 @@ from waterair.evaluation.rollouts import Sensed, reference_name
 
 TRACES = ("gain", "gain_upper_bound", "reference_gain", "path_valid")
 """What a comparison reads of each policy's traces ``[R, P, T]``."""
+WHERE = ("scenario", "wind", "offset_ratio", "offset_azimuth_deg", "divergence")
+"""What names a point of an evaluation: its scenario, its coordinates and the beam divergence (rad)."""
 COMPARISON_KEYS = (
-    "scenario",
-    "wind",
-    "offset_ratio",
-    "offset_azimuth_deg",
-    "divergence",
+    *WHERE,
     "policy",
     "base",
     *(f"{name}_{kind}{suffix}" for name in COMPARED for kind in ("diff", "ratio") for suffix in ("", "_lo", "_hi")),

@@ -11,7 +11,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from waterair.core.files import atomic_write_csv, atomic_write_text
 from waterair.evaluation import plots
-from waterair.evaluation.comparisons import COMPARISON_KEYS
+from waterair.evaluation.comparisons import COMPARISON_KEYS, WHERE
 from waterair.evaluation.divergence import best_divergences, learned_gains
 from waterair.evaluation.figures import physics_figures
 from waterair.evaluation.metrics import ACQUISITION_SECONDS, HELD, METRICS, PHASE_METRICS
@@ -27,11 +27,7 @@ metrics apart (``acquisition_<name>``, ``tracking_<name>``) per row; 4: ``diverg
 AXES = ("wind", "offset_ratio", "offset_azimuth_deg")
 """The three coordinates of a scenario point, in order."""
 ROW_KEYS = (
-    "scenario",
-    "wind",
-    "offset_ratio",
-    "offset_azimuth_deg",
-    "divergence",
+    *WHERE,
     "policy",
     "kind",
     *(f"{name}{suffix}" for name in (*METRICS, "received_power_dbm", *HELD) for suffix in ("", "_lo", "_hi")),
