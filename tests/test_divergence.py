@@ -71,7 +71,7 @@ def test_a_divergence_range_is_drawn_uniformly_in_the_logarithm_within_it():
     low, high = 0.005, 0.1
     config = EnvConfig(divergence_range=(low, high))
     count = 20_000
-    drawn = draws.divergence(config, torch.arange(count), torch.Generator().manual_seed(5))
+    drawn = draws.divergence(config, torch.arange(count), draws.StreamDraws(torch.Generator().manual_seed(5)))
     assert drawn.dtype == torch.float64 and drawn.shape == (count,)
     assert drawn.min() >= low and drawn.max() <= high
     fraction = (torch.log(drawn.sort().values) - math.log(low)) / math.log(high / low)

@@ -323,13 +323,13 @@ def test_env_wind_trains_every_link_of_every_reset_at_that_wind(monkeypatch):
 
     cfg = compose_config("config", ["env.wind=12", "reward.a=5", "env.sea.n_dir=4"])
     assert cfg.reward.a == 5 and cfg.env.wind_range is None and cfg.env.sea.wind == 12
-    drawn, sample = [], WaveSurface.sample.__func__
+    drawn, sample = [], WaveSurface.from_uniforms.__func__
 
     def recorded(cls, sea, batch_size, *args, wind=None, **kwargs):
         drawn.append(torch.full((batch_size,), sea.wind) if wind is None else wind.float())
         return sample(cls, sea, batch_size, *args, wind=wind, **kwargs)
 
-    monkeypatch.setattr(WaveSurface, "sample", classmethod(recorded))
+    monkeypatch.setattr(WaveSurface, "from_uniforms", classmethod(recorded))
     env = WaterAirEnv(env_config(cfg, num_envs=6, max_steps=2, compile_kernel=False, seed=3))
     env.rollout(5, break_when_any_done=False)  # resets, then every link again after steps 2 and 4
     assert len(drawn) >= 3 and set(torch.cat(drawn).tolist()) == {12.0}

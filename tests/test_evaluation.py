@@ -530,11 +530,11 @@ def test_latest_run_is_the_newest_checkpoint(tmp_path):
 BEACON_KEYS = ("beacon", "beacon_noise_rad", "beacon_threshold")
 """The env keys of the drone's beacon (docs/model.md §4.9)."""
 LATER_KEYS = (*BEACON_KEYS, "divergence_range", "divergence_values", "residual_beams", "replica_actions",
-              "replica_sensing", *FIXED)  # fmt: skip
+              "replica_sensing", *FIXED, "draws", "link_offset")  # fmt: skip
 """The env keys that came after ``intensity`` and ``paper`` were trained: the beacon's (their sensors read none),
 each link's own divergence (they were trained at one, ``optics.divergence``), the transmitter's residual in
-beam widths, how each replica acts and senses and the operating point (after ``default`` too; null, their
-defaults, is how they were trained)."""
+beam widths, how each replica acts and senses, the operating point and where the draws come from (after
+``default`` too; their defaults, null and the generator's stream, are how they were trained)."""
 
 
 @pytest.mark.parametrize("name", list(SHIPPED))

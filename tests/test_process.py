@@ -81,14 +81,14 @@ libc.free.argtypes = [ctypes.c_void_p]
 def state():
     size = 64 << 20
     start = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
-    for _ in range(2):  # glibc's defaults map a block this large anew each time; kept, it is reused
+    for _ in range(2):  # glibc's defaults map a block this large anew each time (its pages fault twice); kept, once
         block = libc.malloc(size)
         ctypes.memset(block, 1, size)
         libc.free(block)
     dynamo = torch._dynamo.config
     return {
         "collector": [gc.isenabled(), gc.get_freeze_count()],
-        "allocator maps each block anew": resource.getrusage(resource.RUSAGE_SELF).ru_minflt - start > size // 4096,
+        "allocator maps each block anew": resource.getrusage(resource.RUSAGE_SELF).ru_minflt - start > 3 * size // 8192,
         "dynamo": [dynamo.recompile_limit, dynamo.accumulated_recompile_limit, dynamo.automatic_dynamic_shapes],
         "inductor": [repr(inductor.post_grad_custom_post_pass), cpp.LoopNest.max_parallel_depth.__module__],
     }

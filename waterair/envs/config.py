@@ -47,29 +47,14 @@ BASE_NEEDS = {"aoa_tracker": ("spot", "spot_valid"), "beacon_tracker": ("spot", 
 """The observation parts each residual base reads."""
 ACTION_KEYS = ("action_mode", "residual_deg", "residual_beams", "residual_base")
 """The keys that say how an action turns into tilts, which ``replica_actions`` may set per replica."""
-OBSERVATION_EXTRAS = (
-    "spot",
-    "spot_valid",
-    "beacon",
-    "beacon_valid",
-    "history",
-    "action_history",
-    "geometry",
-    "divergence",
-)
+OBSERVATION_EXTRAS = ("spot", "spot_valid", "beacon", "beacon_valid", "history", "action_history", "geometry",
+                      "divergence")  # fmt: skip
 """Opt-in observation parts, in the order they follow the paper's 8 (docs/environment.md)."""
-SENSOR_KEYS = (
-    "latency_steps",
-    "intensity_noise",
-    "intensity_noise_floor",
-    "intensity_saturation",
-    "spot_noise_rad",
-    "spot_threshold",
-    "beacon_noise_rad",
-    "beacon_threshold",
-)
+SENSOR_KEYS = ("latency_steps", "intensity_noise", "intensity_noise_floor", "intensity_saturation", "spot_noise_rad",
+               "spot_threshold", "beacon_noise_rad", "beacon_threshold")  # fmt: skip
 """The sensing keys (presets: env/sensor=ideal|ideal_late|realistic)."""
 DTYPES = ("float32", "float64")
+DRAWS = ("stream", "keyed")
 ENV_SOLVERS = ("newton", "centroid")
 """Path solvers of the step: fixed-iteration Newton in the step's graph, or the paper's centroid method."""
 
@@ -142,9 +127,11 @@ class EnvConfig:
     replica_actions: tuple[Mapping | tuple, ...] | None = None
     # and senses as replica_sensing[k] says, a mapping of SENSOR_KEYS (the same way)
     replica_sensing: tuple[Mapping | tuple, ...] | None = None
-    # torch.compile the whole step into one graph (one-off compile, cached by torch per machine;
-    # ~4x faster CPU steps at B = 16, ~5x at 1024). train.py and evaluate.py turn it on. Not
-    # "compile": TorchRL's EnvBase metaclass takes that keyword for itself.
+    # each link's random numbers (docs/model.md §10): one generator's, in order (stream), or hashed from what they are
+    draws: str = "stream"
+    link_offset: int = 0  # keyed draws: the realisation of the batch's first link (a batch split over environments)
+    # torch.compile the step into one graph (docs/environment.md, "The compiled step"); train.py and evaluate.py
+    # decide. Not "compile": TorchRL's EnvBase metaclass takes that keyword for itself.
     compile_kernel: bool = False
 
     def __post_init__(self) -> None:
@@ -164,6 +151,8 @@ class EnvConfig:
             )
         resolve_device(self.device, "env.device")  # cuda without a GPU is an error now
         check_choice("env.dtype", self.dtype, DTYPES)
+        check_choice("env.draws", self.draws, DRAWS)
+        check_int("env.link_offset", self.link_offset, 0, 2**40)
         if self.seed is not None:
             check_int("env.seed", self.seed, 0, 2**63 - 1)
         check_range("env.dt", self.dt, 0.0, 10.0, low_open=True, unit="s")

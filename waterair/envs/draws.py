@@ -1,11 +1,16 @@
-"""What each link gets at a reset: its wind, wind direction, offset, azimuth and beam divergence
-(docs/environment.md, "Start").
+"""What each link gets at a reset: its wind, wind direction, offset, azimuth, beam divergence and sea
+(docs/environment.md, "Start"), and where the random numbers come from (docs/model.md §10).
 
 Each is drawn uniformly from ``<name>_range`` (the divergence uniformly in its logarithm), cycled from the
 scenario list ``<name>_values`` (link i takes entry i mod its length), or left to the default. Replicas share
 their draws: a batch of k replicas draws once per distinct link (:func:`distinct_links`) and copies to each
-replica. The environment draws in a fixed order (the sea's conditions, its surface, the geometry, then the divergence),
-so that a seed gives the same seas and geometry whatever else is configured.
+replica.
+
+With ``env.draws=keyed`` (:class:`KeyedDraws`) each draw is a hash of (seed, the link's realisation, its episode,
+the draw's role): what a link gets does not depend on the links beside it, and realisation r of every scenario
+point (link i is point i mod P, realisation i div P) shares its draws, so that points are paired. With
+``env.draws=stream`` (:class:`StreamDraws`, the paper's) the batch draws in order from one generator (the
+sea's conditions, its surface, the geometry, then the divergence).
 """
 
 from __future__ import annotations
@@ -14,7 +19,50 @@ import math
 
 import torch
 
+from waterair.core.hashing import key, uniforms
 from waterair.envs.config import EnvConfig
+
+ROLES = {"wind": 1, "wind_direction": 2, "jitter": 3, "phase": 4, "offset": 5, "offset_azimuth": 6, "divergence": 7}
+"""Each keyed draw's role, a part of its key: a link's draws for two roles are independent."""
+
+
+class StreamDraws:
+    """Uniforms in order from ``generator`` for the links of one reset."""
+
+    def __init__(self, generator: torch.Generator) -> None:
+        self.generator = generator
+
+    def uniform(self, role: str, count: int, links: int) -> torch.Tensor:
+        """``count`` uniforms ``[links, count]`` float64 for the draw ``role``: the generator's next."""
+        return torch.rand(links, count, generator=self.generator, dtype=torch.float64)
+
+
+class KeyedDraws:
+    """Uniforms hashed from each link's ``keys`` ``[m]`` (int64, :func:`link_keys`) and the draw's role."""
+
+    def __init__(self, keys: torch.Tensor) -> None:
+        self.keys = keys
+
+    def uniform(self, role: str, count: int, links: int) -> torch.Tensor:
+        """``count`` uniforms ``[links, count]`` float64 for the draw ``role`` of each link."""
+        return uniforms(key(self.keys, ROLES[role]), count)
+
+
+def points(config: EnvConfig) -> int:
+    """The scenario points a batch's links cycle through: the length of its ``*_values`` lists, or 1."""
+    return next((len(getattr(config, name)) for name in config.__dataclass_fields__ if name.endswith("_values")
+                 and getattr(config, name) is not None), 1)  # fmt: skip
+
+
+def realisations(config: EnvConfig, links: torch.Tensor) -> torch.Tensor:
+    """Each of ``links``' (distinct links' indices, ``[m]``) realisation ``[m]`` int64: ``env.link_offset`` plus
+    its index over the points (link i is point i mod P, realisation i div P)."""
+    return config.link_offset + links.cpu().to(torch.int64) // points(config)
+
+
+def link_keys(config: EnvConfig, seed: int, links: torch.Tensor, episodes: torch.Tensor) -> torch.Tensor:
+    """The keys ``[m]`` of ``links``' draws at their ``episodes`` ``[m]`` (each link's resets so far)."""
+    return key(seed, realisations(config, links), episodes.cpu())
 
 
 def distinct_links(config: EnvConfig, rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -22,37 +70,37 @@ def distinct_links(config: EnvConfig, rows: torch.Tensor) -> tuple[torch.Tensor,
     return torch.unique(rows % (config.num_envs // config.replicas), return_inverse=True)
 
 
-def sea_conditions(config: EnvConfig, links: torch.Tensor, generator: torch.Generator):
+def sea_conditions(config: EnvConfig, links: torch.Tensor, draws):
     """Wind speed (m/s) and wind direction (deg) ``[m]`` float64 for distinct ``links``, or None (the sea's own)."""
-    wind = per_link(config.wind_range, config.wind_values, None, links, generator)
-    direction = per_link(config.wind_direction_range, config.wind_direction_values, None, links, generator)
+    wind = per_link(config.wind_range, config.wind_values, None, links, draws, "wind")
+    direction = per_link(
+        config.wind_direction_range, config.wind_direction_values, None, links, draws, "wind_direction"
+    )
     return wind, direction
 
 
-def geometry(config: EnvConfig, links: torch.Tensor, generator: torch.Generator):
+def geometry(config: EnvConfig, links: torch.Tensor, draws):
     """Offset ratio ``[m]`` and offset azimuth (deg) ``[m]`` or None (the geometry's own), float64."""
-    offset = per_link(config.offset_range, config.offset_values, config.geometry.offset_ratio, links, generator)
-    azimuth = per_link(config.offset_azimuth_range, config.offset_azimuth_values, None, links, generator)
+    offset = per_link(config.offset_range, config.offset_values, config.geometry.offset_ratio, links, draws, "offset")
+    azimuth = per_link(config.offset_azimuth_range, config.offset_azimuth_values, None, links, draws, "offset_azimuth")
     return offset, azimuth
 
 
-def divergence(config: EnvConfig, links: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+def divergence(config: EnvConfig, links: torch.Tensor, draws) -> torch.Tensor:
     """The beam divergence ω_D (rad) ``[m]`` float64 of distinct ``links``: log-uniform in ``divergence_range``,
     cycled from ``divergence_values``, or the optics' own."""
     return per_link(
-        config.divergence_range, config.divergence_values, config.optics.divergence, links, generator, log=True
+        config.divergence_range, config.divergence_values, config.optics.divergence, links, draws, "divergence", True
     )
 
 
-def per_link(
-    bounds, values, default, links: torch.Tensor, generator: torch.Generator, log: bool = False
-) -> torch.Tensor | None:
-    """float64 ``[m]`` values for ``links``: drawn from ``bounds`` (uniformly, or uniformly in the logarithm
-    with ``log``), cycled from ``values``, or ``default``."""
+def per_link(bounds, values, default, links: torch.Tensor, draws, role: str, log: bool = False) -> torch.Tensor | None:
+    """float64 ``[m]`` values for ``links``: drawn (``draws``' uniforms for ``role``) from ``bounds`` (uniformly,
+    or uniformly in the logarithm with ``log``), cycled from ``values``, or ``default``."""
     count = links.numel()
     if bounds is not None:
         low, high = (math.log(b) for b in bounds) if log else bounds
-        drawn = low + (high - low) * torch.rand(count, generator=generator, dtype=torch.float64)
+        drawn = low + (high - low) * draws.uniform(role, 1, count)[:, 0]
         return drawn.exp() if log else drawn
     if values is not None:
         return torch.tensor(values, dtype=torch.float64)[links.cpu() % len(values)]

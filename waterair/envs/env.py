@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import torch
@@ -12,6 +13,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import EnvBase
 
 from waterair.core.devices import resolve_device
+from waterair.core.hashing import mix
 from waterair.envs import draws, kernel
 from waterair.envs.config import EnvConfig
 from waterair.envs.constants import StepConstants
@@ -104,6 +106,8 @@ class WaterAirEnv(EnvBase):
         self._generator = torch.Generator()
         self._sensor_generator = torch.Generator()
         self._channel_generator = torch.Generator()
+        self.link_episodes = torch.zeros(config.num_envs // config.replicas, dtype=torch.int64)
+        """Each distinct link's resets so far (CPU int64): a part of its keyed draws' key (``env.draws=keyed``)."""
         self._set_seed(config.seed)
         self.sensor = Sensor(
             [SensorSettings(**replica.sensing) for replica in config.replica_configs()],
@@ -111,7 +115,8 @@ class WaterAirEnv(EnvBase):
             generator=self._sensor_generator,
             beacon_half_fov=config.beacon.half_fov,
         )
-        self._noise_keys = stream_keys(config.num_envs, config.replicas)
+        keyed = draws.realisations(config, torch.arange(config.num_envs) % (config.num_envs // config.replicas))
+        self._noise_keys = mix(keyed + 1) if config.draws == "keyed" else stream_keys(config.num_envs, config.replicas)
         self.constants = StepConstants.of(config, self.sensor, self.reward_fn, self.channel)
         self.stepper = Stepper(
             self.constants,
@@ -183,6 +188,7 @@ class WaterAirEnv(EnvBase):
     def _set_seed(self, seed: int | None) -> None:
         # Random numbers are drawn on CPU generators, so a seed gives the same seas on any device.
         # Sensor noise has its own generator: noisy and ideal sensors see the same seas.
+        self.link_episodes.zero_()
         if seed is None:
             self._generator.seed()
             self._sensor_generator.seed()
@@ -285,21 +291,16 @@ class WaterAirEnv(EnvBase):
         from recorded as a step records it (:func:`kernel.start`), written into the rows whatever its entries."""
         config, dtype = self.config, self.float_dtype
         distinct, copy = draws.distinct_links(config, rows)
-        wind, direction = draws.sea_conditions(config, distinct, self._generator)
-        surface = WaveSurface.sample(
-            self.sea,
-            distinct.numel(),
-            generator=self._generator,
-            device=self.device,
-            dtype=dtype,
-            wind=wind,
-            wind_direction_deg=direction,
-        )
+        source = self._draws(distinct)
+        wind, direction = draws.sea_conditions(config, distinct, source)
+        uniform = functools.partial(source.uniform, links=distinct.numel())
+        conditions = {"device": self.device, "dtype": dtype, "wind": wind, "wind_direction_deg": direction}
+        surface = WaveSurface.from_uniforms(self.sea, distinct.numel(), uniform, **conditions)
         self.surface[rows] = surface[copy.to(self.device)] if config.replicas > 1 else surface
-        offset, azimuth = draws.geometry(config, distinct, self._generator)
+        offset, azimuth = draws.geometry(config, distinct, source)
         offset, azimuth = offset[copy.cpu()], None if azimuth is None else azimuth[copy.cpu()]
         tx, rx = (v.to(self.device, dtype) for v in self.link.positions_for(offset, azimuth))
-        divergence = draws.divergence(config, distinct, self._generator)[copy.cpu()].to(self.device)
+        divergence = draws.divergence(config, distinct, source)[copy.cpu()].to(self.device)
         constants = self.constants.for_links(divergence, self.constants.replica_of(rows, config.num_envs))
         reference = self.channel.reference_gain(tx.double(), rx.double()).to(dtype)
         prepared = constants.channel.prepare(tx, rx, self.surface.unresolved[rows])
@@ -330,6 +331,15 @@ class WaterAirEnv(EnvBase):
         self.state.write_rows(rows, started)
         for mine, value in zip(self.measurement, measurement, strict=True):
             mine[rows] = value
+
+    def _draws(self, distinct: torch.Tensor) -> draws.StreamDraws | draws.KeyedDraws:
+        """Where the reset of the ``distinct`` links draws from (``env.draws``); keyed draws count each link's
+        episode."""
+        if self.config.draws == "stream":
+            return draws.StreamDraws(self._generator)
+        episodes = self.link_episodes[distinct.cpu()]
+        self.link_episodes[distinct.cpu()] += 1
+        return draws.KeyedDraws(draws.link_keys(self.config, self._generator.initial_seed(), distinct, episodes))
 
     def _output(self, observation: torch.Tensor, reset: torch.Tensor | None = None) -> TensorDict:
         """The step's TensorDict, with the observation's parts of this layout (of all parts), stacked

@@ -139,6 +139,12 @@ KEYS: dict[str, tuple[str, str]] = {
         "it acts (evaluation)",
     ),
     "replica_sensing": ("–", "null, or per replica some sensing keys (evaluation)"),
+    "draws": (
+        "–",
+        "stream (one generator for the batch, in order: the paper's), keyed (each link's draws hashed from the seed, "
+        "its realisation, its episode and the draw's role: docs/model.md §10)",
+    ),
+    "link_offset": ("–", "[0, 2⁴⁰]: keyed draws: the realisation of the batch's first link"),
     "compile_kernel": (
         "–",
         'true: `torch.compile` the whole step into one graph (docs/environment.md, "The compiled step"); '

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -298,15 +298,11 @@ class WaveSurface(TensorClass):
     ) -> WaveSurface:
         """Draw ``batch_size`` independent realisations of ``sea``.
 
-        Each realisation jitters every frequency (``jonswap``) or wavenumber (``elfouhaily``)
-        uniformly inside its bin (so the surface does not repeat within an episode and the expected
-        variance is the band's m0) and draws phases uniform in [0, 2π); its ``unresolved`` slope
-        covariance follows its wind speed and direction. Random numbers come from ``generator`` if
-        given, else from a new generator seeded with ``seed`` (nondeterministic when both are None); they are drawn on
-        the generator's device in float64, so a seed gives the same sea on CPU and CUDA.
-        ``wind`` (m/s, ``[batch_size]``) gives each realisation its own wind speed (domain
-        randomisation), and ``wind_direction_deg`` (degrees from +x, ``[batch_size]``) its own wind
-        direction; the other sea parameters are shared.
+        Each jitters every frequency (``jonswap``) or wavenumber (``elfouhaily``) uniformly inside its bin (the
+        surface does not repeat within an episode; the expected variance is the band's m0) and draws phases uniform
+        in [0, 2π); its ``unresolved`` slope covariance follows its wind. The numbers are ``generator``'s, else a new
+        generator's seeded with ``seed`` (None: nondeterministic), drawn on its device in float64, so a seed gives the
+        same sea on CPU and CUDA. ``wind`` (m/s), ``wind_direction_deg`` (from +x): each one's own ``[batch_size]``.
         """
         batch = check_int("batch_size", batch_size, 1)
         if generator is None:
@@ -315,13 +311,35 @@ class WaveSurface(TensorClass):
                 generator.seed()
             else:
                 generator.manual_seed(seed)
-        draw_device = generator.device
+
+        def uniform(role: str, count: int) -> torch.Tensor:  # the generator's next, whatever the role
+            return torch.rand(batch, count, generator=generator, dtype=torch.float64, device=generator.device)
+
+        return cls.from_uniforms(
+            sea, batch, uniform, device=device, dtype=dtype, wind=wind, wind_direction_deg=wind_direction_deg
+        )
+
+    @classmethod
+    def from_uniforms(
+        cls,
+        sea: SeaState,
+        batch: int,
+        uniform: Callable[[str, int], torch.Tensor],
+        *,
+        device: torch.device | str | None = None,
+        dtype: torch.dtype = torch.float32,
+        wind: torch.Tensor | None = None,
+        wind_direction_deg: torch.Tensor | None = None,
+    ) -> WaveSurface:
+        """:meth:`sample`'s ``batch`` realisations from ``uniform`` (role, count): the draw ``role``'s (``"jitter"``,
+        then ``"phase"``) uniforms on (0, 1) ``[batch, count]`` float64, built on their device (docs/model.md §10)."""
+        n_dir, n_bins = sea.n_dir, sea.n_bins  # bins in frequency (the paper's sea) or in wavenumber
+        jitter = uniform("jitter", n_bins)
+        draw_device = jitter.device
         if wind is not None:
             wind = wind.to(device=draw_device, dtype=torch.float64).expand(batch)
-        n_dir, n_bins = sea.n_dir, sea.n_bins  # bins in frequency (the paper's sea) or in wavenumber
         edges = sea.bin_edges(torch.float64, draw_device, wind).expand(batch, n_bins + 1)
         width = edges[:, 1:] - edges[:, :-1]
-        jitter = torch.rand(batch, n_bins, generator=generator, dtype=torch.float64, device=draw_device)
         drawn = edges[:, :-1] + jitter * width
         omega, amplitude, wavenumber = sea.harmonics(drawn, width, wind)
         theta, _ = sea.directions(torch.float64, draw_device)
@@ -333,11 +351,7 @@ class WaveSurface(TensorClass):
             heading = (theta + torch.deg2rad(direction).unsqueeze(-1)).unsqueeze(1)  # [batch, 1, n_dir]
         kx = wavenumber.unsqueeze(-1) * torch.cos(heading)
         ky = wavenumber.unsqueeze(-1) * torch.sin(heading)
-        phase = (
-            2.0
-            * math.pi
-            * torch.rand(batch, n_bins * n_dir, generator=generator, dtype=torch.float64, device=draw_device)
-        )
+        phase = 2.0 * math.pi * uniform("phase", n_bins * n_dir).to(draw_device)  # after the jitter, as drawn
         speed = torch.full((batch,), sea.wind, dtype=torch.float64, device=draw_device) if wind is None else wind
         unresolved = rotated_covariance(*sea.unresolved_slope_variances(speed), direction)
 

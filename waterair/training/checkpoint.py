@@ -46,6 +46,7 @@ class Learner:
     buffer: object
     observation_size: int
     average: bool = False  # the greedy policy is the actor's Polyak average (its target network)
+    env_episodes: torch.Tensor | None = None  # each link's resets so far (keyed draws: a part of their keys)
 
     def policy(self) -> torch.nn.Module:
         """The greedy policy the run saves and evaluates (``agent.policy_weights``): the actor's last
@@ -77,6 +78,7 @@ def save_checkpoint(run_dir: Path, progress: Progress, learner: Learner, keep_bu
         "torch_rng": torch.get_rng_state(),
         "env_rng": learner.env_generator.get_state(),
         "sensor_rng": learner.sensor_generator.get_state(),
+        **({} if learner.env_episodes is None else {"env_episodes": learner.env_episodes.clone()}),
     }
     if keep_buffer:
         state["buffer"] = {"dir": _dump_buffer(run_dir, learner.buffer, progress.frames), "size": len(learner.buffer)}
@@ -103,6 +105,8 @@ def load_checkpoint(run_dir: Path, learner: Learner, keep_buffer: bool) -> Progr
     torch.set_rng_state(state["torch_rng"])
     learner.env_generator.set_state(state["env_rng"])
     learner.sensor_generator.set_state(state["sensor_rng"])
+    if learner.env_episodes is not None and "env_episodes" in state:  # a run saved before the key: none
+        learner.env_episodes.copy_(state["env_episodes"])
     if keep_buffer and "buffer" in state:
         dump = run_dir / "checkpoints" / state["buffer"]["dir"]
         if not dump.is_dir():

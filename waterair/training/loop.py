@@ -106,6 +106,7 @@ def _train(
         buffer,
         base.observation_size,
         average=cfg.agent.policy_weights == "average",
+        env_episodes=base.link_episodes,
     )
     counters = load_checkpoint(run_dir, learner, cfg.checkpoint.keep_buffer) if resumed else Progress()
 
