@@ -53,3 +53,18 @@ def test_the_summary_sets_the_defaults_step_against_the_lattice_floor(tmp_path, 
     if compiled:
         expected.append("| full channel env-steps/s, B = 16 / B = 1024, compiled | 0.62 | ≥ 0.4 | yes |")
     assert summary_lines(tmp_path)[2:] == expected
+
+
+def test_the_summary_judges_the_median_of_three_rounds_and_says_so(tmp_path):
+    """Three rounds of the channel suite, one of them over the target: the median meets it, the spread is shown, and
+    a line says what was judged; a suite of one round beside them is shown as measured."""
+    record = {"rounds": [{"compiled_kernel": True, "rows": [*rows(16, 5000.0, 9.9), *rows(1024, 8000.0, ratio)]}
+                         for ratio in (0.30, 0.40, 0.33)]}  # fmt: skip
+    (tmp_path / "channel.json").write_text(json.dumps(record))
+    lines = summary_lines(tmp_path)
+    name = "full channel step / lattice sin+cos floor, B = 1024, compiled"
+    assert lines[2] == f"| {name} | 0.33 (median of 3; 0.30–0.40) | ≤ 0.35 | yes |"
+    assert lines[-1] == "Judged on the median of 3 rounds, each a whole run of its suite."
+    record["rounds"][2]["rows"] = [*rows(16, 5000.0, 9.9), *rows(1024, 8000.0, 0.38)]  # now the median fails
+    (tmp_path / "channel.json").write_text(json.dumps(record))
+    assert summary_lines(tmp_path)[2] == f"| {name} | 0.38 (median of 3; 0.30–0.40) | ≤ 0.35 | no |"

@@ -54,6 +54,9 @@ from waterair.core.files import atomic_write_json
 from waterair.core.threads import check_threads
 from waterair.physics import sea_state
 
+ROUNDS_JUDGED = ("env", "channel", "training", "quality")
+"""The suites whose ratios the summary judges: three rounds each by default, judged on their median."""
+
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m waterair.bench", description="waterair benchmarks (JSON out)")
@@ -156,7 +159,15 @@ def main(argv: list[str] | None = None) -> int:
         if p not in (montecarlo, cutoff):
             p.add_argument("--compile", action="store_true", help="evaluate the surface through torch.compile")
         p.add_argument("--out", type=Path, default=None, help="JSON output file (default outputs/bench/SUITE.json)")
+    for name, p in sub.choices.items():
+        if name != "summary":
+            rounds = 3 if name in ROUNDS_JUDGED else 1
+            p.add_argument(
+                "--rounds", type=int, default=rounds, help=f"whole runs of the suite, in turn (default {rounds})"
+            )
     args = parser.parse_args(argv)
+    if args.suite != "summary" and args.rounds < 1:
+        parser.exit(2, f"error: --rounds = {args.rounds} is out of range; allowed [1, ...)\n")
     if args.suite == "summary":
         print(summary(args.folder))
         return 0
@@ -167,6 +178,21 @@ def main(argv: list[str] | None = None) -> int:
         parser.exit(2, f"error: {error}\n")
     if args.suite in ("training", "quality") and not sb3_installed():
         print(SB3_MISSING, flush=True)
+    records = []
+    for index in range(args.rounds):  # each round the whole suite, both sides of each pair in it, in turn
+        if args.rounds > 1:
+            print(f"round {index + 1} of {args.rounds}", flush=True)
+        records.append(_record(args, device, sea))
+    record = records[0] if args.rounds == 1 else {"machine": records[0].get("machine"), "rounds": records}
+    out = args.out or Path("outputs/bench") / f"{args.suite}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(out, record)
+    print(f"\nwritten {out}")
+    return 0
+
+
+def _record(args: argparse.Namespace, device: torch.device, sea) -> dict:
+    """One round of the suite ``args`` names: its record, its table printed."""
     if args.suite == "training":
         record = {"machine": machine(torch.device("cpu"), torch.float32)}
         record.update(
@@ -240,11 +266,7 @@ def main(argv: list[str] | None = None) -> int:
         dtype = getattr(torch, args.dtype)
         record = bench_physics(args.sizes, args.centroid_sizes, args.repeats, device, dtype, sea, args.compile)
         print(physics_table(record))
-    out = args.out or Path("outputs/bench") / f"{args.suite}.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(out, record)
-    print(f"\nwritten {out}")
-    return 0
+    return record
 
 
 def _threads(text: str) -> int | str:

@@ -3,22 +3,18 @@
 Path-solve time per batch (Newton cold and warm start, centroid), surface evaluations per
 second, the "sin+cos floor" (one ``sin`` and one ``cos`` over ``[B, K]``) and the ratio of a Newton
 solve to (evaluations per solve × floor). Beside the paper's sea, one order-2 evaluation of the
-measured-slope sea (``env/spectrum=elfouhaily``, :data:`OCEAN`) is timed in the same run.
+measured-slope sea (``env/spectrum=elfouhaily``, its defaults at the suite's wind) is timed in the same run.
 """
 
 from __future__ import annotations
 
-import dataclasses
-
 import torch
 
 from waterair.bench.common import machine, sincos_floor, timed
-from waterair.physics import LinkGeometry, SeaState, WaveSurface, solve_path
+from waterair.physics import LinkGeometry, SeaState, WaveSurface, sea_state, solve_path
 
 DT = 0.05
 """Time between a cold solve and the warm-started one (s), the environment's step."""
-OCEAN = {"spectrum": "elfouhaily", "n_wavenumbers": 48, "n_dir": 16, "wavenumber_cutoff": 10.0}
-"""The measured-slope sea of ``env/spectrum=elfouhaily`` (its harmonics, not its wind, which is the suite's)."""
 
 
 def bench_physics(
@@ -36,7 +32,7 @@ def bench_physics(
     def solve(t, **kwargs):
         return solve_path(surface, tx, rx, t, compiled=compiled, **kwargs)  # noqa: B023 (the loop's surface)
 
-    ocean = dataclasses.replace(sea, **OCEAN)
+    ocean = sea_state("elfouhaily", wind=sea.wind, fetch=sea.fetch)  # env/spectrum=elfouhaily at the suite's wind
     harmonics = sea.n_freq * sea.n_dir
     rows = []
     for batch in sizes:
