@@ -42,6 +42,10 @@ def test_a_keys_uniforms_are_splitmix64s_of_its_parts_and_differ_by_role():
     batch = uniforms(key(12345, torch.arange(4), 0, 4), 3)
     assert [row.tolist() for row in batch] == [reference_uniforms((12345, r, 0, 4), 3) for r in range(4)]
     assert not torch.equal(uniforms(key(1, 2, 3), 4), uniforms(key(1, 3, 2), 4))
+    # a seed of 64 bits (torch's nondeterministic ones) is its bits: 2^64 - 1 is -1
+    assert torch.equal(key(2**64 - 1, 5), key(-1, 5)) and uniforms(key(2**64 - 1, 5), 2).tolist() == reference_uniforms(
+        (2**64 - 1, 5), 2
+    )
     assert uniforms(key(5, 0, 0, 3), 10_000).mean().item() == pytest.approx(0.5, abs=0.01)
 
 
@@ -94,6 +98,16 @@ def test_a_batch_split_over_environments_resets_each_link_as_the_whole_batch_doe
             assert torch.equal(value, torch.cat([half[k][name] for half in halves])), (k, name)
     assert not torch.equal(whole[0]["phase"], whole[1]["phase"])  # each episode its own seas
     assert whole[0]["divergence"].unique().numel() == 16  # each link its own draw
+
+
+def test_an_unseeded_environment_draws_keyed_seas_of_its_own():
+    """Its key starts from torch's nondeterministic 64-bit seed, which an int64 holds only as its bits."""
+    phases = []
+    for _ in range(2):
+        env = WaterAirEnv(EnvConfig(**{**KEYED, "seed": None}, num_envs=2))
+        env.reset()
+        phases.append(env.surface.phase)
+    assert not torch.equal(*phases)
 
 
 def test_stream_draws_are_the_generators_in_order_and_keyed_ones_ignore_the_batch():

@@ -29,10 +29,13 @@ def mix(x: torch.Tensor) -> torch.Tensor:
 
 
 def key(*parts: torch.Tensor | int) -> torch.Tensor:
-    """One int64 key per element of the broadcast ``parts`` (ints or int64 tensors): each part mixed into the
-    key so far, so that keys of different parts, or of the same parts in another order, differ."""
+    """One int64 key per element of the broadcast ``parts`` (ints, taken modulo 2^64 as a 64-bit seed is, or int64
+    tensors): each part mixed into the key so far, so that keys of different parts, or of the same parts in another
+    order, differ."""
     word = torch.zeros((), dtype=torch.int64)
     for part in parts:
+        if isinstance(part, int):
+            part = (part + (1 << 63)) % (1 << 64) - (1 << 63)  # the same 64 bits, as signed int64
         word = mix(word * 3 + torch.as_tensor(part, dtype=torch.int64) * GOLDEN + 1)
     return word
 
