@@ -28,10 +28,13 @@ class Row:
     name: str
     shown: str
     target: str
-    met: bool | None
     value: float | None = None
-    judge: Callable[[float], bool] | None = None
+    judge: Callable[[float], bool] | None = None  # None: shown, not judged
     form: str = "{:.2f}"
+
+    def met(self, value: float | None) -> bool | None:
+        """Whether ``value`` meets the target (None: not judged)."""
+        return None if self.judge is None or value is None else self.judge(value)
 
 
 def rounds(folder: Path, suite: str) -> list[dict]:
@@ -62,13 +65,13 @@ def summary_lines(folder: Path) -> list[str]:
 def _line(rows: list[Row]) -> str:
     """A target's table line: its one round as measured, or the median of its rounds, judged."""
     first = rows[0]
-    shown, met = first.shown, first.met
+    shown, met = first.shown, first.met(first.value)
     if len(rows) > 1 and first.value is not None:
         values = [row.value for row in rows if row.value is not None]
         median = statistics.median(values)
         spread = f"{first.form.format(min(values))}–{first.form.format(max(values))}"
         shown = f"{first.form.format(median)} (median of {len(values)}; {spread})"
-        met = first.judge(median) if first.judge is not None else None
+        met = first.met(median)
     return f"| {first.name} | {shown} | {first.target} | {'–' if met is None else ('yes' if met else 'no')} |"
 
 
@@ -76,8 +79,8 @@ def _round_rows(load: Callable[[str], dict | None]) -> list[Row]:
     """The rows of one round of the suites ``load`` gives (None: a suite not run, or not in this round)."""
     rows: list[Row] = []
 
-    def row(name: str, shown: str, target: str, met: bool | None, value=None, judge=None, form="{:.2f}") -> None:
-        rows.append(Row(name, shown, target, met, value, judge, form))
+    def row(name: str, shown: str, target: str, value=None, judge=None, form="{:.2f}") -> None:
+        rows.append(Row(name, shown, target, value, judge, form))
 
     env = load("env")
     if env is not None:
@@ -87,21 +90,20 @@ def _round_rows(load: Callable[[str], dict | None]) -> list[Row]:
                 rate = by_batch[batch]["env_steps_per_s"]
                 judge = lambda v, t=target: v >= t  # noqa: E731
                 name = f"env-steps/s at B = {batch}"
-                row(name, f"{rate:,.0f}", f"≥ {target:,}", judge(rate), rate, judge, "{:,.0f}")
+                row(name, f"{rate:,.0f}", f"≥ {target:,}", rate, judge, "{:,.0f}")
         if 1024 in by_batch:
             r = by_batch[1024]
             row(
                 "step / (evaluations × sin+cos floor), B = 1024",
                 f"{r['floor_ratio']:.2f} ({r['evaluations_per_step']:.0f} evaluations)",
                 "≤ 1.5",
-                r["floor_ratio"] <= 1.5,
                 r["floor_ratio"],
                 lambda v: v <= 1.5,
             )
         if "compile" in env:
             c = env["compile"]
             cold_warm = f"{c['cold_s']:.0f} / {c['warm_s']:.0f}"
-            row("compile, cold / warm cache (s)", cold_warm, "paid once per machine", None)
+            row("compile, cold / warm cache (s)", cold_warm, "paid once per machine")
     channel = load("channel")
     if channel is not None:
         _channel_rows(channel, row)
@@ -112,7 +114,6 @@ def _round_rows(load: Callable[[str], dict | None]) -> list[Row]:
             "DDPG update / bare PyTorch (compiled, eager)",
             f"{update['ratio_compiled']:.2f}, {update['ratio_eager']:.2f}",
             "≤ 1.2",
-            update["ratio_compiled"] <= 1.2,
             update["ratio_compiled"],
             lambda v: v <= 1.2,
         )
@@ -122,7 +123,6 @@ def _round_rows(load: Callable[[str], dict | None]) -> list[Row]:
                     f"train.py / SB3 DDPG frames/s, whole loop, {run['frames']:,} frames ({run['mode']})",
                     f"{run['over_sb3']:.1f}",
                     "none: what counts is the time to quality (below)",
-                    None,
                     run["over_sb3"],
                     None,
                     "{:.1f}",
@@ -133,13 +133,13 @@ def _round_rows(load: Callable[[str], dict | None]) -> list[Row]:
                 f"train.py frames/s beside a busy process / quiet, threads={busy['threads']}",
             )
             if busy["threads"] == str(training["threads"]["setting"]):
-                row(name, f"{ratio:.2f}", "≥ 0.5", ratio >= 0.5, ratio, lambda v: v >= 0.5)
+                row(name, f"{ratio:.2f}", "≥ 0.5", ratio, lambda v: v >= 0.5)
             else:  # torch's own count: the behaviour before the threads key
-                row(name, f"{ratio:.2f}", "(before threads)", None, ratio)
+                row(name, f"{ratio:.2f}", "(before threads)", ratio)
         ddpg = training["train_ddpg"]  # the paper preset is DDPG; a long run's rate past its compiles
         minutes = PAPER_FRAMES / (ddpg["loop_after_first_batch_frames_per_s"] or ddpg["loop_frames_per_s"]) / 60
         paper = "paper budget (250,000 frames) at train.py's rate"
-        row(paper, f"{minutes:.1f} min", "≤ 6 min", minutes <= 6, minutes, lambda v: v <= 6, "{:.1f} min")
+        row(paper, f"{minutes:.1f} min", "≤ 6 min", minutes, lambda v: v <= 6, "{:.1f} min")
     quality = load("quality") or {}
     flat = {
         key.removeprefix("sb3_flat_base_over_"): ratio for key, ratio in quality.items() if "flat_base_over_" in key
@@ -150,7 +150,7 @@ def _round_rows(load: Callable[[str], dict | None]) -> list[Row]:
         return f"{'at least ' if mine.endswith('_at_least') else ''}{flat[mine]:.1f}"
 
     for mine in flat:  # each of our pipelines: compiled, and eager (what auto runs at these budgets) when measured
-        row(f"{to} / {mine.removesuffix('_at_least')}'s", measured(mine), "–", None, flat[mine], None, "{:.1f}")
+        row(f"{to} / {mine.removesuffix('_at_least')}'s", measured(mine), "–", flat[mine], None, "{:.1f}")
     if flat:  # SB3's best pipeline against ours, each from scratch, its compiles counted where it compiles
         best = max(flat, key=flat.__getitem__)
         name = f"{to} / our best pipeline's ({best.removesuffix('_at_least')})"
@@ -159,8 +159,7 @@ def _round_rows(load: Callable[[str], dict | None]) -> list[Row]:
         target = f"≥ 10 over ≥ {SEEDS_TO_JUDGE} seeds, compiles included"
         count = f"{seeds} seed{'s' if seeds > 1 else ''}"
         judge = (lambda v: v >= 10) if judged else None
-        met = flat[best] >= 10 if judged else None
-        row(name, f"{measured(best)} ({count})", target, met, flat[best], judge, "{:.1f}")
+        row(name, f"{measured(best)} ({count})", target, flat[best], judge, "{:.1f}")
     return rows
 
 
@@ -173,11 +172,11 @@ def _channel_rows(channel: dict, row) -> None:
     if "lattice_floor_ratio" in defaults.get(1024, {}):
         ratio, target = defaults[1024]["lattice_floor_ratio"], 0.35 if compiled else 1.5
         name = f"full channel step / lattice sin+cos floor, B = 1024, {'compiled' if compiled else 'eager'}"
-        row(name, f"{ratio:.2f}", f"≤ {target}", ratio <= target, ratio, lambda v: v <= target)
+        row(name, f"{ratio:.2f}", f"≤ {target}", ratio, lambda v: v <= target)
     if compiled and 16 in defaults and 1024 in defaults:
         ratio = defaults[16]["env_steps_per_s"] / defaults[1024]["env_steps_per_s"]
         name = "full channel env-steps/s, B = 16 / B = 1024, compiled"
-        row(name, f"{ratio:.2f}", "≥ 0.4", ratio >= 0.4, ratio, lambda v: v >= 0.4)
+        row(name, f"{ratio:.2f}", "≥ 0.4", ratio, lambda v: v >= 0.4)
 
 
 def main(folder: Path) -> str:

@@ -19,8 +19,10 @@ import math
 
 import torch
 
-from waterair.core.hashing import key, uniforms
+from waterair.core.hashing import key, mix, uniforms
 from waterair.envs.config import EnvConfig
+from waterair.envs.noise import stream_keys
+from waterair.envs.operating_point import PER_LINK
 
 ROLES = {"wind": 1, "wind_direction": 2, "jitter": 3, "phase": 4, "offset": 5, "offset_azimuth": 6, "divergence": 7}
 """Each keyed draw's role, a part of its key: a link's draws for two roles are independent."""
@@ -49,15 +51,23 @@ class KeyedDraws:
 
 
 def points(config: EnvConfig) -> int:
-    """The scenario points a batch's links cycle through: the length of its ``*_values`` lists, or 1."""
-    return next((len(getattr(config, name)) for name in config.__dataclass_fields__ if name.endswith("_values")
-                 and getattr(config, name) is not None), 1)  # fmt: skip
+    """The scenario points a batch's links cycle through: the length of its ``*_values`` lists (one length when
+    several are given, as the config checks), or 1."""
+    return next((len(values) for name in PER_LINK if (values := getattr(config, f"{name}_values")) is not None), 1)
 
 
 def realisations(config: EnvConfig, links: torch.Tensor) -> torch.Tensor:
     """Each of ``links``' (distinct links' indices, ``[m]``) realisation ``[m]`` int64: ``env.link_offset`` plus
     its index over the points (link i is point i mod P, realisation i div P)."""
     return config.link_offset + links.cpu().to(torch.int64) // points(config)
+
+
+def noise_keys(config: EnvConfig) -> torch.Tensor:
+    """Each row's sensor-noise stream key ``[num_envs]`` (:mod:`waterair.envs.noise`): its distinct link's, or with
+    keyed draws its realisation's, so that realisation r of every point reads the same noise."""
+    if config.draws == "stream":
+        return stream_keys(config.num_envs, config.replicas)
+    return mix(realisations(config, torch.arange(config.num_envs) % (config.num_envs // config.replicas)) + 1)
 
 
 def link_keys(config: EnvConfig, seed: int, links: torch.Tensor, episodes: torch.Tensor) -> torch.Tensor:

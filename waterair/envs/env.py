@@ -13,12 +13,10 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import EnvBase
 
 from waterair.core.devices import resolve_device
-from waterair.core.hashing import mix
 from waterair.envs import draws, kernel
 from waterair.envs.config import EnvConfig
 from waterair.envs.constants import StepConstants
 from waterair.envs.frames import FrameStack
-from waterair.envs.noise import stream_keys
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import Sensor, SensorSettings
 from waterair.envs.specs import make_specs
@@ -115,8 +113,7 @@ class WaterAirEnv(EnvBase):
             generator=self._sensor_generator,
             beacon_half_fov=config.beacon.half_fov,
         )
-        keyed = draws.realisations(config, torch.arange(config.num_envs) % (config.num_envs // config.replicas))
-        self._noise_keys = mix(keyed + 1) if config.draws == "keyed" else stream_keys(config.num_envs, config.replicas)
+        self._noise_keys = draws.noise_keys(config)
         self.constants = StepConstants.of(config, self.sensor, self.reward_fn, self.channel)
         self.stepper = Stepper(
             self.constants,
