@@ -96,6 +96,7 @@ def rollout(channel: str, sea: str, interface: str) -> dict[str, torch.Tensor]:
         dtype="float64",
         channel={"name": "counting", "rays": 2000, "facets": 8} if channel == "montecarlo" else {"name": channel},
         sea={**SEAS[sea], "wind": 12.0},  # the wind of the recordings; the residual interface draws its own
+        draws="stream",  # the batch's draws of the recordings, in order from one generator
         **INTERFACES[interface],
     )
     # small actions: near straight facing (absolute) or near the base controller (residual), where light arrives

@@ -43,9 +43,10 @@ def rollout(env: WaterAirEnv, steps: int, controller: str | None) -> dict[str, t
     [("single_path", None), ("full", None), ("full", "intensity_dither"), ("single_path", "beacon_tracker")],
 )
 def test_a_batch_of_mixed_divergences_gives_each_link_what_a_batch_of_its_divergence_alone_gives(channel, controller):
-    """Link i of a batch holding :data:`SPREAD` against link i of a batch whose every link has SPREAD[i] as the
-    optics' divergence (the same seas, geometry and sensor noise: none of them depends on ω_D), realistic
-    sensing with the beacon read, residual actions on the beacon tracker: bit for bit, eagerly."""
+    """Link i of a batch holding :data:`SPREAD` (point i of realisation 0) against link i of a batch whose every
+    link has SPREAD[i] (its points alike: the same realisation, seas, geometry and sensor noise, none of which
+    depends on ω_D, and the same place in the batch), realistic sensing with the beacon read, residual actions on
+    the beacon tracker: bit for bit, eagerly."""
     steps = 12
     base = preset_config(
         "beacon", "realistic", len(SPREAD), channel={"name": channel}, action_mode="residual", divergence_range=None
@@ -55,7 +56,9 @@ def test_a_batch_of_mixed_divergences_gives_each_link_what_a_batch_of_its_diverg
     if controller == "intensity_dither":
         base = base.replace(residual_base="flat_snell", observation_extras=("divergence",))
     mixed = rollout(WaterAirEnv(base.replace(divergence_values=SPREAD)), steps, controller)
-    alone = [rollout(WaterAirEnv(base.replace(optics={"divergence": w})), steps, controller) for w in SPREAD]
+    alone = [
+        rollout(WaterAirEnv(base.replace(divergence_values=(w,) * len(SPREAD))), steps, controller) for w in SPREAD
+    ]
     for link, single in enumerate(alone):
         assert torch.equal(mixed["divergence"][:, link], torch.full((steps,), SPREAD[link], dtype=torch.float64))
         for key in COMPARED:

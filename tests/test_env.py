@@ -167,7 +167,9 @@ def test_replicas_share_their_seas_and_points_but_not_their_pointing():
         for name in ("omega", "kx", "ky", "amplitude", "phase"):
             assert torch.equal(getattr(env.surface, name)[2 * k : 2 * k + 2], getattr(env.surface, name)[:2]), name
         torch.testing.assert_close(env.state.rx_position[2 * k : 2 * k + 2], env.state.rx_position[:2], rtol=0, atol=0)
-    assert not torch.equal(env.surface.phase[0], env.surface.phase[1])  # the two distinct links differ
+    # the two distinct links are two points of one realisation: the same phases (paired), their own offsets
+    assert torch.equal(env.surface.phase[0], env.surface.phase[1])
+    assert not torch.equal(env.state.rx_position[0], env.state.rx_position[1])
     # different actions on identical seas: the same paths (and G_UB), different gains
     action = torch.zeros(6, 4)
     action[2:4] = env.action_for_pointing(td["departure"][2:4], -td["arrival"][2:4])

@@ -534,7 +534,8 @@ LATER_KEYS = (*BEACON_KEYS, "divergence_range", "divergence_values", "residual_b
 """The env keys that came after ``intensity`` and ``paper`` were trained: the beacon's (their sensors read none),
 each link's own divergence (they were trained at one, ``optics.divergence``), the transmitter's residual in
 beam widths, how each replica acts and senses, the operating point and where the draws come from (after
-``default`` too; their defaults, null and the generator's stream, are how they were trained)."""
+``default`` too). Their defaults, null, are how they were trained, but for the draws': all three were trained on
+the generator's stream (``env.draws=stream``), keyed draws' default came after them."""
 
 
 @pytest.mark.parametrize("name", list(SHIPPED))

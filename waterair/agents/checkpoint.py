@@ -17,7 +17,7 @@ from pathlib import Path
 import torch
 from tensordict.nn import TensorDictModule
 
-from waterair.agents.networks import make_actor
+from waterair.agents.networks import RowBlocks, make_actor
 from waterair.core.files import atomic_write
 
 POLICY_FORMAT = "waterair-policy/1"
@@ -61,7 +61,8 @@ class PolicyFile:
                 f"builds {_shapes(expected)}"
             )
         module.load_state_dict(self.actor_state)
-        return module.eval()
+        # in blocks of rows: a policy's actions on a link do not depend on the links beside it (RowBlocks)
+        return TensorDictModule(RowBlocks(module.module), in_keys=module.in_keys, out_keys=module.out_keys).eval()
 
 
 def policy_state(actor: TensorDictModule, observation_size: int, frames: int | None) -> dict:

@@ -128,7 +128,7 @@ class EnvConfig:
     # and senses as replica_sensing[k] says, a mapping of SENSOR_KEYS (the same way)
     replica_sensing: tuple[Mapping | tuple, ...] | None = None
     # each link's random numbers (docs/model.md §10): one generator's, in order (stream), or hashed from what they are
-    draws: str = "stream"
+    draws: str = "keyed"
     link_offset: int = 0  # keyed draws: the realisation of the batch's first link (a batch split over environments)
     # torch.compile the step into one graph (docs/environment.md, "The compiled step"); train.py and evaluate.py
     # decide. Not "compile": TorchRL's EnvBase metaclass takes that keyword for itself.

@@ -141,8 +141,8 @@ KEYS: dict[str, tuple[str, str]] = {
     "replica_sensing": ("–", "null, or per replica some sensing keys (evaluation)"),
     "draws": (
         "–",
-        "stream (one generator for the batch, in order: the paper's), keyed (each link's draws hashed from the seed, "
-        "its realisation, its episode and the draw's role: docs/model.md §10)",
+        "keyed (each link's draws hashed from the seed, its realisation, its episode and the draw's role: "
+        "docs/model.md §10), stream (one generator for the batch, in order: the paper's, `+experiment=paper`)",
     ),
     "link_offset": ("–", "[0, 2⁴⁰]: keyed draws: the realisation of the batch's first link"),
     "compile_kernel": (
