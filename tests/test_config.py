@@ -10,7 +10,7 @@ from waterair.training.config import validate
 GROUPS = {
     group.name: sorted(p.stem for p in group.glob("*.yaml"))
     for group in sorted((ROOT / "conf").iterdir())
-    if group.is_dir() and group.name not in ("env", "hydra", "experiment", "study")  # study: evaluate.py's, test_cli.py
+    if group.is_dir() and group.name not in ("env", "hydra", "experiment", "study", "scenarios")  # last two: evaluate
 }
 OPTIONS = [(group, option) for group, options in GROUPS.items() for option in options]
 OPTIONS += [
@@ -157,3 +157,11 @@ def test_every_noise_and_buffer_the_config_allows_is_one_entry_of_the_builders_r
 
     assert set(off_policy.EXPLORATION_NOISES) == set(training_config.NOISES)
     assert set(builders.STORAGES) == set(training_config.BUFFERS)
+
+
+def test_the_publish_scenarios_change_s5s_seas_only():
+    """``+scenarios=publish`` (docs/results' numbers): evaluate.py's config with S5 on 256 seas, nothing else."""
+    default = OmegaConf.to_container(compose_config("evaluate"), resolve=True)
+    publish = OmegaConf.to_container(compose_config("evaluate", ["+scenarios=publish"]), resolve=True)
+    assert publish["scenarios"]["S5"].pop("realisations") == 256 > default["scenarios"]["S5"].pop("realisations")
+    assert publish == default
