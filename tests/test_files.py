@@ -1,6 +1,7 @@
 """Atomic writes: the target holds the old content or the new, never a part, and no temp file is left."""
 
 import json
+import math
 
 import pytest
 import torch
@@ -28,3 +29,12 @@ def test_text_json_csv_and_torch_round_trip(tmp_path):
     assert (tmp_path / "m.csv").read_text().splitlines() == ["x,y", "1,2", "4,"]
     atomic_write(tmp_path / "t.pt", lambda handle: torch.save({"w": torch.arange(3)}, handle))
     assert torch.equal(torch.load(tmp_path / "t.pt", weights_only=True)["w"], torch.arange(3))
+
+
+def test_json_records_are_one_line_each_and_read_back_as_written(tmp_path):
+    data = {"schema_version": 6, "link": {"power_w": 0.05}, "rows": [{"a": 1.5, "b": float("nan")}, {"a": 2, "b": "x"}]}
+    path = atomic_write_json(tmp_path / "m.json", data, records=True)
+    lines = path.read_text().splitlines()
+    assert '    {"a":1.5,"b":NaN},' in lines and '    {"a":2,"b":"x"}' in lines
+    back = json.loads(path.read_text())
+    assert back["rows"][1] == data["rows"][1] and back["link"] == data["link"] and math.isnan(back["rows"][0]["b"])

@@ -55,8 +55,9 @@ class RowBlocks(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         flat = x.reshape(-1, x.shape[-1])
         count = flat.shape[0]
-        padded = torch.cat([flat, flat.new_zeros((-count) % self.rows, flat.shape[1])])
-        out = torch.cat([self.module(block) for block in padded.split(self.rows)])
+        if pad := (-count) % self.rows:
+            flat = torch.cat([flat, flat.new_zeros(pad, flat.shape[1])])
+        out = torch.cat([self.module(block) for block in flat.split(self.rows)])
         return out[:count].reshape(*x.shape[:-1], out.shape[-1])
 
 

