@@ -163,7 +163,7 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert {p.name for p in written} >= {"metrics.json", "metrics.csv", "report.md"}
 
     data = json.loads((tmp_path / "metrics.json").read_text())
-    assert data["schema_version"] == 6
+    assert data["schema_version"] == 7
     assert data["link"]["power_w"] == 0.05 and data["link"]["fec_power"] == pytest.approx(3.16e-8, rel=0.01)
     labels = [p["label"] for p in data["policies"]]
     references = ["tracking", "beacon_tracker", "aoa_tracker", "intensity_dither", "flat_snell", "straight_facing"]
@@ -197,6 +197,7 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
         base = next(r for r in data["rows"] if r["policy"] == realistic[0] and _same_point(r, comparison))
         assert comparison["ratio_to_ub_diff"] == pytest.approx(row["ratio_to_ub"] - base["ratio_to_ub"], abs=1e-12)
         assert comparison["ratio_to_ub_diff_lo"] <= comparison["ratio_to_ub_diff"] <= comparison["ratio_to_ub_diff_hi"]
+        assert (comparison["rate_held"], comparison["base_rate_held"]) == (row["rate_held"], base["rate_held"])
     csv_lines = (tmp_path / "metrics.csv").read_text().splitlines()
     assert csv_lines[0].split(",") == list(ROW_KEYS) and len(csv_lines) == 1 + len(data["rows"])
 

@@ -7,6 +7,8 @@ the same seas, and :func:`~waterair.evaluation.metrics.paired_comparison` resamp
 
 from __future__ import annotations
 
+import math
+
 from waterair.envs.controllers import CONTROLLERS
 from waterair.evaluation.metrics import COMPARED, paired_comparison, verdict
 from waterair.evaluation.rollouts import Sensed, reference_name
@@ -20,9 +22,14 @@ COMPARISON_KEYS = (
     "policy",
     "base",
     *(f"{name}_{kind}{suffix}" for name in COMPARED for kind in ("diff", "ratio") for suffix in ("", "_lo", "_hi")),
+    "rate_held",
+    "base_rate_held",
     "rate_held_verdict",
 )
 """The keys of every ``comparisons`` entry of metrics.json."""
+HOLDS_NOTHING = 1.0e3
+"""bit/s: a rate held in 99 % of steps below this is no link (no OOK receiver runs slower); where both policies'
+held rates are below it their ratio is undefined, and the verdict says ``neither holds``."""
 
 
 def base_labels(groups, learned) -> dict[str, str]:
@@ -45,10 +52,14 @@ def base_labels(groups, learned) -> dict[str, str]:
     return bases
 
 
-def comparison_rows(policies: list[dict], runs: dict, index: int, where: dict, link, bootstrap) -> list[dict]:
+def comparison_rows(
+    policies: list[dict], runs: dict, index: int, where: dict, held: dict[str, float], link, bootstrap
+) -> list[dict]:
     """One row per learned policy of ``policies`` (the evaluation's entries) with a ``base``: at point ``index`` of
-    ``runs`` (label → traces), ``where`` (scenario, the point's coordinates, divergence) and the paired comparison;
-    ``rate_held_verdict`` says what the held rates' ratio interval allows (:func:`verdict`)."""
+    ``runs`` (label → traces), ``where`` (scenario, the point's coordinates, divergence), both policies' rates held
+    in 99 % of steps (``held``: label → bit/s, the point's rows') and the paired comparison. ``rate_held_verdict``
+    says what the held rates' ratio interval allows (:func:`verdict`), or ``neither holds`` where both held rates
+    are under :data:`HOLDS_NOTHING` (their ratio is then NaN, its interval too)."""
     rows = []
     settings = {"link": link, "level": bootstrap.level, "resamples": bootstrap.resamples, "seed": bootstrap.seed}
     for policy in policies:
@@ -56,6 +67,12 @@ def comparison_rows(policies: list[dict], runs: dict, index: int, where: dict, l
             continue
         pair = [tuple(runs[label][key][:, index] for key in TRACES) for label in (policy["label"], policy["base"])]
         compared = paired_comparison(*pair, **settings)
-        held = verdict(compared["rate_held_ratio_lo"], compared["rate_held_ratio_hi"], even=1.0)
-        rows.append({**where, "policy": policy["label"], "base": policy["base"], **compared, "rate_held_verdict": held})
+        rates = {"rate_held": held[policy["label"]], "base_rate_held": held[policy["base"]]}
+        if max(rates.values()) < HOLDS_NOTHING:
+            compared |= dict.fromkeys(("rate_held_ratio", "rate_held_ratio_lo", "rate_held_ratio_hi"), math.nan)
+            judged = "neither holds"
+        else:
+            judged = verdict(compared["rate_held_ratio_lo"], compared["rate_held_ratio_hi"], even=1.0)
+        row = {**where, "policy": policy["label"], "base": policy["base"], **compared, **rates}
+        rows.append(row | {"rate_held_verdict": judged})
     return rows

@@ -17,7 +17,7 @@ from waterair.evaluation.metrics import ACQUISITION_SECONDS, HELD, METRICS, PHAS
 from waterair.evaluation.runner import UPPER_BOUND, Evaluation
 from waterair.physics.link import fec_power
 
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
 """6: ``rate_held`` and ``rate_held_999`` with their bounds, per row and per phase, and ``comparisons``, each learned
 policy against its classical base at every point; 5: ``rate_held_999`` and the acquisition's and the tracking's
 metrics apart (``acquisition_<name>``, ``tracking_<name>``) per row; 4: ``divergence``, ``received_power_dbm`` and
@@ -296,7 +296,8 @@ def _comparison_lines(result: Evaluation) -> list[str]:
         "Each learned policy against the controller its residual actions correct, sensing as it does, on the same "
         "seas: the difference in ratio to the upper bound and the ratio of the rates held in 99 % of steps, each "
         "with its 95 % paired bootstrap interval (both policies' seas resampled together). *ahead* or *behind* "
-        "where the held rates' interval excludes 1, else *not separable*.",
+        "where the held rates' interval excludes 1, else *not separable*; *neither holds* where both hold under "
+        "1 kbit/s (no link: their ratio is undefined).",
         "",
     ]
     rows = []
@@ -306,10 +307,18 @@ def _comparison_lines(result: Evaluation) -> list[str]:
         )
         rows.append((c["scenario"], point, c["policy"], c["base"],
                      f"{c['ratio_to_ub_diff']:+.4f} [{c['ratio_to_ub_diff_lo']:+.4f}, {c['ratio_to_ub_diff_hi']:+.4f}]",
-                     f"{c['rate_held_ratio']:.3f} [{c['rate_held_ratio_lo']:.3f}, {c['rate_held_ratio_hi']:.3f}]",
+                     _held_ratio(c),
                      c["rate_held_verdict"]))  # fmt: skip
     header = ("scenario", "point", "learned", "base", "ratio to UB: difference", "held 99 %: ratio", "held rate")
     return [*lines, *_table(header, rows), ""]
+
+
+def _held_ratio(comparison: dict) -> str:
+    """The held rates' ratio with its interval, or ``—`` where it is undefined (both hold nothing)."""
+    c = comparison
+    if math.isnan(c["rate_held_ratio"]):
+        return "—"
+    return f"{c['rate_held_ratio']:.3f} [{c['rate_held_ratio_lo']:.3f}, {c['rate_held_ratio_hi']:.3f}]"
 
 
 def _table(header, rows) -> list[str]:

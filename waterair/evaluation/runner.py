@@ -341,7 +341,8 @@ def _collect(
             )
         where = {"scenario": scenario.name, "wind": wind, "offset_ratio": offset, "offset_azimuth_deg": azimuth}
         where["divergence"] = divergence
-        result.comparisons += comparison_rows(result.policies, runs, index, where, link, bootstrap)
+        held = {row["policy"]: row["rate_held"] for row in result.rows[-len(kinds) :]}
+        result.comparisons += comparison_rows(result.policies, runs, index, where, held, link, bootstrap)
     sweep = scenario.power_sweep
     if scenario.divergences and (sweep is None or not math.isclose(sweep.divergence, divergence)):
         return

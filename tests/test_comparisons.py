@@ -1,0 +1,51 @@
+"""Each learned policy against its base (waterair.evaluation.comparisons): the verdict on the held rates."""
+
+import math
+from types import SimpleNamespace
+
+import torch
+
+from waterair.evaluation.comparisons import COMPARISON_KEYS, HOLDS_NOTHING, comparison_rows
+from waterair.evaluation.metrics import scenario_metrics
+from waterair.physics.link import LinkBudget
+
+POLICIES = [{"label": "learned", "kind": "learned", "base": "base"}, {"label": "base", "kind": "baseline"}]
+BOOTSTRAP = SimpleNamespace(level=0.95, resamples=200, seed=0)
+
+
+def _runs(scale_learned: float, scale_base: float) -> dict:
+    """Two policies on 12 seas × 1 point × 40 steps whose gains differ by a factor, the same seas beneath."""
+    seas = 1.0 + torch.rand(12, 1, 40, generator=torch.Generator().manual_seed(3), dtype=torch.float64)
+    traces = {}
+    for label, scale in (("learned", scale_learned), ("base", scale_base)):
+        gain = scale * seas
+        traces[label] = {"gain": gain, "gain_upper_bound": 2.0 * scale_base * seas.clamp(min=2.0),
+                         "reference_gain": torch.full((12, 1), 2.0 * scale_base), "path_valid": gain > 0}  # fmt: skip
+    return traces
+
+
+def _compare(runs: dict) -> dict:
+    held = {}
+    for label, t in runs.items():
+        traces = (t["gain"][:, 0], t["gain_upper_bound"][:, 0], t["reference_gain"][:, 0], t["path_valid"][:, 0])
+        held[label] = scenario_metrics(*traces, link=LinkBudget(), resamples=10)["rate_held"]
+    (row,) = comparison_rows(POLICIES, runs, 0, {"scenario": "S5"}, held, LinkBudget(), BOOTSTRAP)
+    assert (row["rate_held"], row["base_rate_held"]) == (held["learned"], held["base"])
+    assert set(row) >= set(COMPARISON_KEYS) - {"wind", "offset_ratio", "offset_azimuth_deg", "divergence"}
+    return row
+
+
+def test_two_policies_that_hold_no_link_have_no_held_ratio_and_are_said_to_hold_nothing():
+    # gains of 1e-7 /m² carry about 40 bit/s: the learned policy holds 1.5× the base's, but neither is a link
+    row = _compare(_runs(1.5e-7, 1e-7))
+    assert max(row["rate_held"], row["base_rate_held"]) < HOLDS_NOTHING and row["rate_held"] > row["base_rate_held"]
+    assert row["rate_held_verdict"] == "neither holds"
+    assert all(math.isnan(row[f"rate_held_ratio{suffix}"]) for suffix in ("", "_lo", "_hi"))
+    assert row["rate_held_diff"] > 0  # the difference stays: it is in bit/s and says how little either holds
+
+
+def test_the_same_factor_on_a_link_that_holds_is_judged_by_its_interval():
+    # 1e-5 /m²: hundreds of kbit/s; the learned policy's gain 1.5× the base's on every step of every sea
+    row = _compare(_runs(1.5e-5, 1e-5))
+    assert row["base_rate_held"] > HOLDS_NOTHING and row["rate_held_verdict"] == "ahead"
+    assert 1.0 < row["rate_held_ratio_lo"] <= row["rate_held_ratio"] <= row["rate_held_ratio_hi"]
