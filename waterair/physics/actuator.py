@@ -1,0 +1,156 @@
+"""Pointing actuators: a second-order axis with range, rate, acceleration and resolution limits (docs/model.md §11).
+
+Each axis obeys
+
+    θ̈ = ω_n² (u − θ) − 2 ζ ω_n θ̇
+
+with the command u held over a step (zero-order hold). Over a step of Δt the state (θ − u, θ̇) moves by the
+matrix exponential Φ = exp(A Δt), A = [[0, 1], [−ω_n², −2 ζ ω_n]], computed once per configuration in float64:
+the closed form, exact at any Δt, however stiff the axis. Only where a limit binds (the rate, the
+acceleration, the range) is the step split into sub-steps, each the exact response over its length, then
+projected onto the limits (:func:`respond`): the state a step reports never exceeds them.
+
+A coarse gimbal carrying a fine mirror (:func:`respond_pair`) points where the gimbal reaches plus what the mirror
+adds within its range, the mirror commanded to the rest: the realistic terminal of a free-space optical link.
+
+Angles are in radians, rates in rad/s, and every tensor ``[..., axes]``: the functions act elementwise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import torch
+
+from waterair.core.validation import check_range
+
+SUBSTEPS = 16
+"""Sub-steps of a step where a limit binds: a slew at the rate limit is resolved to Δt / 16 (3 ms at 50 ms)."""
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One pointing axis (the presets and their sources in docs/model.md §11).
+
+    Attributes:
+        range: the largest deflection from the axis's centre |θ| (rad), in (0, π/2].
+        rate: the largest angular rate |θ̇| (rad/s), in (0, inf] (inf: no limit).
+        acceleration: the largest angular acceleration |θ̈| (rad/s²), in (0, inf] (inf: no limit).
+        natural_frequency: f_n = ω_n / 2π of the closed loop (Hz), in (0, 1e5].
+        damping: ζ, in (0, 10].
+        resolution: the smallest step of the command (rad), in [0, 0.01] (0: continuous).
+    """
+
+    range: float = math.pi / 4
+    rate: float = math.inf
+    acceleration: float = math.inf
+    natural_frequency: float = 10.0
+    damping: float = 0.7
+    resolution: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name, low, high, unit in (
+            ("range", 0.0, math.pi / 2, "rad"),
+            ("rate", 0.0, math.inf, "rad/s"),
+            ("acceleration", 0.0, math.inf, "rad/s²"),
+            ("natural_frequency", 0.0, 1.0e5, "Hz"),
+            ("damping", 0.0, 10.0, ""),
+        ):
+            object.__setattr__(self, name, check_range(name, getattr(self, name), low, high, low_open=True, unit=unit))
+        object.__setattr__(self, "resolution", check_range("resolution", self.resolution, 0.0, 0.01, unit="rad"))
+
+    @property
+    def omega(self) -> float:
+        """ω_n (rad/s)."""
+        return 2.0 * math.pi * self.natural_frequency
+
+    def transition(self, dt: float) -> tuple[tuple[float, float], tuple[float, float]]:
+        """Φ = exp(A ``dt``) as two rows of floats (float64): (θ − u, θ̇) after ``dt`` is Φ · (θ − u, θ̇) before."""
+        w, z = self.omega, self.damping
+        a = torch.tensor([[0.0, 1.0], [-(w**2), -2.0 * z * w]], dtype=torch.float64)
+        phi = torch.linalg.matrix_exp(a * dt).tolist()
+        return (phi[0][0], phi[0][1]), (phi[1][0], phi[1][1])
+
+    @property
+    def limited(self) -> bool:
+        """Whether a rate or an acceleration limit is set (else only the range can bind)."""
+        return math.isfinite(self.rate) or math.isfinite(self.acceleration)
+
+
+class AxisState(NamedTuple):
+    """Where an axis points ``angle`` (rad) and how fast it turns ``rate`` (rad/s), ``[..., axes]`` each."""
+
+    angle: torch.Tensor
+    rate: torch.Tensor
+
+
+def command(axis: Axis, target: torch.Tensor) -> torch.Tensor:
+    """The command the axis takes for a ``target`` angle: within its range, on its resolution's grid."""
+    if axis.resolution > 0.0:
+        target = torch.round(target / axis.resolution) * axis.resolution
+    return target.clamp(-axis.range, axis.range)
+
+
+def _exact(phi, state: AxisState, u: torch.Tensor) -> AxisState:
+    """The zero-order-hold response over the step ``phi`` (:meth:`Axis.transition`) to the held command ``u``."""
+    (p00, p01), (p10, p11) = phi
+    error = state.angle - u
+    return AxisState(u + p00 * error + p01 * state.rate, p10 * error + p11 * state.rate)
+
+
+def respond(axis: Axis, state: AxisState, target: torch.Tensor, dt: float) -> AxisState:
+    """The axis after a step of ``dt`` (s) commanded toward ``target`` (rad) from ``state``.
+
+    The exact response (:meth:`Axis.transition`) where no limit binds. Where one does, at any of
+    :data:`SUBSTEPS` points of the step, the step is taken in that many sub-steps: each the exact response
+    over its length, its change in rate then held to the acceleration limit times the sub-step, its rate to the
+    rate limit, and its change in angle to what the limited rate gives (the mean of the two rates over the
+    sub-step); the angle is then held in the range, the rate stopped where it is. The result never exceeds
+    a limit; no branch on data (a compiled step computes both and selects).
+    """
+    u = command(axis, target)
+    whole = _exact(axis.transition(dt), state, u)
+    inside = (whole.angle.abs() <= axis.range) & (whole.rate.abs() <= axis.rate)
+    if not axis.limited:
+        return _stopped(axis, whole)
+    h = dt / SUBSTEPS
+    phi = axis.transition(h)
+    angle, rate = state.angle, state.rate
+    for _ in range(SUBSTEPS):
+        free = _exact(phi, AxisState(angle, rate), u)
+        change = (free.rate - rate).clamp(-axis.acceleration * h, axis.acceleration * h)
+        new_rate = (rate + change).clamp(-axis.rate, axis.rate)
+        bound = free.rate != new_rate
+        inside = inside & ~bound
+        mean = 0.5 * (rate + new_rate) * h
+        moved = torch.where(bound, mean, free.angle - angle)
+        angle, rate = _stopped(axis, AxisState(angle + moved, new_rate))
+        inside = inside & (angle.abs() < axis.range)
+    return AxisState(torch.where(inside, whole.angle, angle), torch.where(inside, whole.rate, rate))
+
+
+def _stopped(axis: Axis, state: AxisState) -> AxisState:
+    """``state`` held inside the range, its rate zero where it met the stop."""
+    angle = state.angle.clamp(-axis.range, axis.range)
+    return AxisState(angle, torch.where(angle != state.angle, torch.zeros_like(state.rate), state.rate))
+
+
+class PairState(NamedTuple):
+    """A coarse ``gimbal`` carrying a fine ``mirror`` (:class:`AxisState` each); it points at their sum."""
+
+    gimbal: AxisState
+    mirror: AxisState
+
+    @property
+    def angle(self) -> torch.Tensor:
+        return self.gimbal.angle + self.mirror.angle
+
+
+def respond_pair(gimbal: Axis, mirror: Axis, state: PairState, target: torch.Tensor, dt: float) -> PairState:
+    """A gimbal and its mirror after a step toward ``target``: the gimbal commanded to the target, the mirror to
+    what the gimbal leaves at the step's end (its inner loop reads the gimbal's encoder far faster than the
+    step), within the mirror's range."""
+    coarse = respond(gimbal, state.gimbal, target, dt)
+    return PairState(coarse, respond(mirror, state.mirror, target - coarse.angle, dt))
