@@ -18,6 +18,7 @@ Angles are in radians, rates in rad/s, and every tensor ``[..., axes]``: the fun
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -66,6 +67,7 @@ class Axis:
         """ω_n (rad/s)."""
         return 2.0 * math.pi * self.natural_frequency
 
+    @functools.cache  # noqa: B019 (a frozen, hashable axis: one matrix exponential per axis and step length)
     def transition(self, dt: float) -> tuple[tuple[float, float], tuple[float, float]]:
         """Φ = exp(A ``dt``) as two rows of floats (float64): (θ − u, θ̇) after ``dt`` is Φ · (θ − u, θ̇) before."""
         w, z = self.omega, self.damping
@@ -112,9 +114,9 @@ def respond(axis: Axis, state: AxisState, target: torch.Tensor, dt: float) -> Ax
     """
     u = command(axis, target)
     whole = _exact(axis.transition(dt), state, u)
-    inside = (whole.angle.abs() <= axis.range) & (whole.rate.abs() <= axis.rate)
     if not axis.limited:
         return _stopped(axis, whole)
+    inside = (whole.angle.abs() <= axis.range) & (whole.rate.abs() <= axis.rate)
     h = dt / SUBSTEPS
     phi = axis.transition(h)
     angle, rate = state.angle, state.rate

@@ -44,7 +44,8 @@ def orbital_motion(sea: Harmonics, position: torch.Tensor, time: torch.Tensor, r
     decay = response * sea.amplitude * torch.exp(k * z.clamp(max=0.0))
     psi = sea.omega * time.unsqueeze(-1) + sea.phase - sea.kx * x - sea.ky * y
     sine, cosine = torch.sin(psi), torch.cos(psi)
-    ux, uy = sea.kx / k.clamp(min=torch.finfo(k.dtype).tiny), sea.ky / k.clamp(min=torch.finfo(k.dtype).tiny)
+    nonzero = k.clamp(min=torch.finfo(k.dtype).tiny)
+    ux, uy = sea.kx / nonzero, sea.ky / nonzero
     displacement = torch.stack(
         ((decay * sine * ux).sum(-1), (decay * sine * uy).sum(-1), (decay * cosine).sum(-1)), dim=-1
     )
@@ -81,8 +82,7 @@ def ou_start(process: Process, noise: torch.Tensor) -> torch.Tensor:
 def ou_step(process: Process, value: torch.Tensor, noise: torch.Tensor, dt: float) -> torch.Tensor:
     """The process ``dt`` (s) after ``value``, exactly: ρ x + σ √(1 − ρ²) n for standard normal ``noise``."""
     rho = process.correlation(dt)
-    scale = (1.0 - rho**2) ** 0.5 if not isinstance(rho, torch.Tensor) else torch.sqrt(1.0 - rho**2)
-    return rho * value + process.sigma * scale * noise
+    return rho * value + process.sigma * (1.0 - rho**2) ** 0.5 * noise
 
 
 def rotation(roll: torch.Tensor, pitch: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
