@@ -13,7 +13,7 @@ from conftest import F64, calm, ends, paper_physics
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import BeaconPredictor, BeaconTracker
 from waterair.envs.env import WaterAirEnv
-from waterair.envs.kernel import unpack
+from waterair.envs.packets import unpack
 from waterair.evaluation.rollouts import rollout_policies
 from waterair.physics.channel import LinkEnds, LocalEstimate, RayTube, SinglePath, Transceiver, TwoScale
 from waterair.physics.channel.beacon import Beacon, read_beacon

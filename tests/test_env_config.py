@@ -17,6 +17,7 @@ from omegaconf import OmegaConf
 from waterair.core import validation
 from waterair.envs.config import EnvConfig
 from waterair.envs.link import link_budget
+from waterair.physics.actuator import Actuator
 from waterair.physics.channel import (
     Beacon,
     CountingChannel,
@@ -50,6 +51,7 @@ GROUPS = {
     "geometry": (LinkGeometry,),
     "optics": (Transceiver,),
     "beacon": (Beacon,),
+    "actuator": (Actuator,),
     "channel": (FullChannel, MonteCarloChannel, CountingChannel),
 }
 

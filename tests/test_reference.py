@@ -14,6 +14,7 @@ from waterair.cli import reference
 from waterair.envs.config import EnvConfig
 from waterair.envs.groups import PHYSICS
 from waterair.envs.keys import KEYS
+from waterair.physics.actuator import Actuator
 from waterair.physics.channel import CHANNELS, Beacon, LinkGeometry, Transceiver
 from waterair.physics.sea import SPECTRA
 from waterair.training.config import CONF_DIR
@@ -25,7 +26,7 @@ def env_keys() -> set[str]:
     keys = {field.name for field in dataclasses.fields(EnvConfig) if field.name not in PHYSICS}
     keys |= {"sea.spectrum", "channel.name"}
     held = [("sea", kind) for kind in SPECTRA.values()] + [("channel", kind) for kind in CHANNELS.values()]
-    held += [("geometry", LinkGeometry), ("optics", Transceiver), ("beacon", Beacon)]
+    held += [("geometry", LinkGeometry), ("optics", Transceiver), ("beacon", Beacon), ("actuator", Actuator)]
     return keys | {f"{group}.{field.name}" for group, kind in held for field in dataclasses.fields(kind)} - {"sea.flat"}
 
 

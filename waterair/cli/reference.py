@@ -27,6 +27,7 @@ from waterair.envs.config import EnvConfig
 from waterair.envs.groups import PHYSICS, SHARED_SEA_KEYS, as_mapping
 from waterair.envs.keys import KEYS
 from waterair.envs.operating_point import FIXED
+from waterair.physics.actuator import Actuator
 from waterair.physics.channel import CHANNELS, Beacon, LinkGeometry, Transceiver
 from waterair.physics.sea import SPECTRA
 from waterair.training.config import CONF_DIR
@@ -38,11 +39,11 @@ TRAINING_REFERENCE = ROOT / "docs" / "reference" / "training.md"
 DECIDED = {"device": "${device}", "seed": "${seed}", "compile_kernel": "auto"}
 """The env keys the entry points fill in (their own ``device`` and ``seed``) or decide (``auto``: compile when the
 run's frames repay it) where the dataclass has a value for a config built by hand."""
-PRESETS = ("sea", "spectrum", "channel", "observation", "sensor")
+PRESETS = ("sea", "spectrum", "channel", "observation", "sensor", "actuator")
 """The option groups under conf/env whose options the reference names where they set a key."""
-HAND_WRITTEN = ("sea", "observation", "sensor")
+HAND_WRITTEN = ("sea", "observation", "sensor", "actuator")
 """The option groups written by hand, each option holding only the keys it changes."""
-PACKAGES = {"sea": "sea", "spectrum": "sea", "channel": "channel"}
+PACKAGES = {"sea": "sea", "spectrum": "sea", "channel": "channel", "actuator": "actuator"}
 """Where a group's keys sit in the env group (the others: at its top)."""
 WIDTH = 118
 SOURCE = "waterair/envs/config.py and the physics objects it holds"
@@ -146,7 +147,7 @@ def dataclass_default(key: str):
         return getattr(defaults, key)
     group, name = key.split(".")
     holders = {"sea": [defaults.sea, *(kind() for kind in SPECTRA.values())], "geometry": [LinkGeometry()],
-               "optics": [Transceiver()], "beacon": [Beacon()],
+               "optics": [Transceiver()], "beacon": [Beacon()], "actuator": [Actuator()],
                "channel": [defaults.channel, *(kind() for kind in CHANNELS.values())]}  # fmt: skip
     return next(as_mapping(each)[name] for each in holders[group] if name in as_mapping(each))
 

@@ -20,7 +20,7 @@ from waterair.physics.optics import unit_vector
 class PointingPolicy(TensorDictModuleBase):
     """Base class: subclasses say where each end should point; this turns it into an action."""
 
-    in_keys = ["tx_position", "rx_position", "flat_point", "divergence", "observation", "tilt", "base_tilt"]
+    in_keys = ["tx_position", "rx_position", "flat_point", "divergence", "observation", "tilt", "pointed", "base_tilt"]
     out_keys = ["action"]
     name = "pointing"
     required_extras: tuple[str, ...] = ()

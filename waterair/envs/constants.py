@@ -14,6 +14,7 @@ import torch
 from waterair.envs.config import EnvConfig
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import Sensor
+from waterair.physics.actuator import Actuator
 from waterair.physics.channel import Beacon, ChannelModel, Transceiver
 from waterair.physics.optics import traced
 from waterair.physics.paths import FixedNewtonOptions
@@ -67,6 +68,8 @@ class StepConstants:
     """Where the replicas act differently (``env.replica_actions``): the distinct ways, and ``replica_choice``, which
     of them each replica takes; empty: every replica acts as ``actions`` says."""
     replica_choice: tuple[int, ...] = ()
+    actuator: Actuator | None = None
+    """The ends' actuators (``env.actuator``); None: none, the command is the pointing."""
 
     @classmethod
     def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward, channel: ChannelModel) -> StepConstants:
@@ -91,6 +94,7 @@ class StepConstants:
             beacon=config.beacon if config.senses_beacon else None,
             replica_actions=tuple(distinct),
             replica_choice=tuple(distinct.index(a) for a in each) if distinct else (),
+            actuator=config.actuator if config.actuator.moves else None,
         )
 
     def for_links(self, divergence: torch.Tensor, replica: torch.Tensor | None = None) -> StepConstants:

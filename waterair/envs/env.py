@@ -13,7 +13,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import EnvBase
 
 from waterair.core.devices import resolve_device
-from waterair.envs import draws, kernel
+from waterair.envs import draws, drives, kernel
 from waterair.envs.config import EnvConfig
 from waterair.envs.constants import StepConstants
 from waterair.envs.frames import FrameStack
@@ -280,7 +280,13 @@ class WaterAirEnv(EnvBase):
 
     @property
     def tilt(self) -> torch.Tensor:
-        """The present commanded tilt vectors (tx_vx, tx_vy, rx_vx, rx_vy), ``[B, 4]``."""
+        """The present commanded tilt vectors (tx_vx, tx_vy, rx_vx, rx_vy), ``[B, 4]`` (the ``tilt`` key)."""
+        return self.state.command.clone()
+
+    @property
+    def pointed(self) -> torch.Tensor:
+        """The tilt vectors the ends point at, ``[B, 4]`` (the ``pointed`` key): the command, but where the
+        actuators (``env.actuator``) have not reached it."""
         return torch.cat((self.state.tx_tilt, self.state.rx_tilt), dim=-1)
 
     def _reset_rows(self, rows: torch.Tensor) -> None:
@@ -313,6 +319,9 @@ class WaterAirEnv(EnvBase):
             reference_gain=reference,
             prepared=prepared,
         )
+        if config.actuator.fixed_mount:  # a fixed mirror starts centred on its mount
+            mount = drives.mount_tilts(config.actuator, flat, tx, rx)
+            links = replace(links, tx_tilt=mount[:, :2], rx_tilt=mount[:, 2:], command=mount)
         path = solve_path(
             seas,
             tx,
@@ -354,6 +363,7 @@ class WaterAirEnv(EnvBase):
             flat_point=state.flat_point.clone(),
             divergence=state.divergence.clone(),
             tilt=self.tilt,
+            pointed=self.pointed,
             base_tilt=self.state.base_tilt.clone(),
         )
         return TensorDict(out, batch_size=self.batch_size, device=self.device)

@@ -23,15 +23,15 @@ from typing import NamedTuple
 
 import torch
 
+from waterair.envs import drives
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
 from waterair.envs.constants import Actions, StepConstants
+from waterair.envs.packets import deliver, pack
 from waterair.envs.sensors import (
-    PACKET_PARTS,
     SensorNoise,
     back_projection,
     beacon_pointing,
     intensity_feature,
-    packet_sizes,
     read_parked,
     spot_position,
 )
@@ -58,7 +58,8 @@ class Record(NamedTuple):
 
 
 def advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
-    """Gimbals, action history and clock after ``action`` ``[B, 4]`` (already clipped to [-1, 1])."""
+    """The ends' pointing (through their actuators, where they have them), the action history and the clock after
+    ``action`` ``[B, 4]`` (already clipped to [-1, 1])."""
     return _advance(c.for_links(state.divergence), state, action)
 
 
@@ -72,12 +73,19 @@ def _advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
             tx, rx = torch.where(way == index, tx_k, tx), torch.where(way == index, rx_k, rx)
     else:
         tx, rx = aimed_tilts(c, c.actions, state, action)
+    tx, rx = limit_tilt(tx, c.max_tilt), limit_tilt(rx, c.max_tilt)
+    command, drive = torch.cat((tx, rx), dim=-1), state.drive
+    if c.actuator is not None:  # the actuators' response to the command (docs/model.md §11)
+        pointed, drive = drives.drive(c, state, command)
+        tx, rx = limit_tilt(pointed[:, :2], c.max_tilt), limit_tilt(pointed[:, 2:], c.max_tilt)
     return Moved(
-        tx_tilt=limit_tilt(tx, c.max_tilt),
-        rx_tilt=limit_tilt(rx, c.max_tilt),
+        tx_tilt=tx,
+        rx_tilt=rx,
         action_history=torch.cat((action.unsqueeze(1), state.action_history[:, :-1]), dim=1),
         time=state.time + c.dt,
         steps=state.steps + 1,
+        command=command,
+        drive=drive,
     )
 
 
@@ -103,8 +111,8 @@ def residual_tilts(c: StepConstants, actions: Actions, state: StepState, action:
 
 
 def delta_tilts(c: StepConstants, actions: Actions, state: StepState, action: torch.Tensor):
-    """``delta``: the present tilts moved by at most a step's slew."""
-    return state.tx_tilt + action[:, :2] * c.slew_step, state.rx_tilt + action[:, 2:] * c.slew_step
+    """``delta``: the present commanded tilts moved by at most a step's slew."""
+    return state.command[:, :2] + action[:, :2] * c.slew_step, state.command[:, 2:] + action[:, 2:] * c.slew_step
 
 
 def residual_reach(actions: Actions, divergence: torch.Tensor) -> torch.Tensor:
@@ -271,35 +279,6 @@ def read_beacon_packet(c: StepConstants, light: LightSamples, tx_dir, rx_dir, re
     return c.sensor.beacon(true, seen.lit, level, noise)
 
 
-def pack(readings: Readings, history: torch.Tensor) -> torch.Tensor:
-    """One packet ``[n, width]``: the ``readings`` and the ``history`` side by side, the parts of
-    :data:`~waterair.envs.sensors.PACKET_PARTS`."""
-    return torch.cat([*readings, history], dim=-1)
-
-
-def unpack(packet: torch.Tensor) -> Packet:
-    """The parts of one packet ``[n, width]`` by name (the inverse of :func:`pack`)."""
-    history_length = packet.shape[-1] - sum(packet_sizes(0))
-    parts = dict(zip(PACKET_PARTS, packet.split(packet_sizes(history_length), dim=-1), strict=True))
-    history = parts.pop("history")
-    return Packet(Readings(**parts), history)
-
-
-def deliver(packets: torch.Tensor, latency_steps: int | torch.Tensor) -> Packet:
-    """What reaches the controller, at the transmitter, of the packets in flight ``[n, slots, width]`` (newest
-    first): the drone's readings, with the transmitter's pointing they were read with, over the return link,
-    ``latency_steps`` late (one, the last slot; or each row's ``[n]``, where replicas sense differently); the beacon
-    reading at once, the newest, for it is read at the transmitter, in the frame of its present pointing
-    (docs/environment.md, "Sensing")."""
-    if isinstance(latency_steps, torch.Tensor):
-        slot = latency_steps.reshape(-1, 1, 1).expand(-1, 1, packets.shape[-1])
-        late = unpack(packets.gather(1, slot)[:, 0])
-    else:
-        late = unpack(packets[:, -1])
-    now = unpack(packets[:, 0]).readings
-    return late._replace(readings=late.readings._replace(beacon=now.beacon, beacon_valid=now.beacon_valid))
-
-
 def conclude(
     c: StepConstants, state: StepState, moved: Moved, solution: Iterate, noise, light: LightSamples | None = None
 ) -> StepResult:
@@ -348,7 +327,8 @@ def start(
     constants set and the rest zeros (at rest: t = 0, both ends upright, no history); ``path`` their cold path
     solve at t = 0. The first packet fills every slot in flight (a reset has no older one); ``generator``: a
     channel's that draws (the Monte Carlo tracer)."""
-    resting = Moved(links.tx_tilt, links.rx_tilt, links.action_history, links.time, links.steps)
+    resting = Moved(links.tx_tilt, links.rx_tilt, links.action_history, links.time, links.steps, links.command,
+                    links.drive)  # fmt: skip
     light = channel_light(c, links, path, resting, generator, copies=1)
     measurement, readings, stored, _, feature = record(
         c, resting.tilts, path, light, links.reference_gain, links.flat_point, noise

@@ -55,6 +55,21 @@ KEYS: dict[str, tuple[str, str]] = {
     "beacon.pointing": ("–", "receiver (along the drone's receiver boresight), nadir (straight down)"),
     "beacon.half_fov": ("rad", "(0, π/2): the transmitter's beacon detector, about its pointing"),
     "beacon.concentrator_index": ("–", "[1, 3]"),
+    "actuator.kind": (
+        "–",
+        "ideal (the command is the pointing), gimbal, fsm (a mirror on a mount along the calm-sea path), "
+        "gimbal_fsm (a gimbal carrying a mirror); both ends alike (docs/model.md §11)",
+    ),
+    "actuator.gimbal_range": ("rad", "(0, π/2]: the gimbal's largest angle per axis"),
+    "actuator.gimbal_rate": ("rad/s", "(0, inf]"),
+    "actuator.gimbal_acceleration": ("rad/s²", "(0, inf]"),
+    "actuator.gimbal_natural_frequency": ("Hz", "(0, 1e5]: f_n of the gimbal's closed loop"),
+    "actuator.gimbal_damping": ("–", "(0, 10]: ζ"),
+    "actuator.gimbal_resolution": ("rad", "[0, 0.01]: the command's step (0: continuous)"),
+    "actuator.mirror_range": ("rad", "(0, π/2]: the beam's largest deflection by the mirror per axis"),
+    "actuator.mirror_natural_frequency": ("Hz", "(0, 1e5]"),
+    "actuator.mirror_damping": ("–", "(0, 10]"),
+    "actuator.mirror_resolution": ("rad", "[0, 0.01]"),
     "channel.name": (
         "–",
         'chosen with `env/channel=full\\|single_path\\|montecarlo\\|counting` (docs/environment.md, "Channel"); '

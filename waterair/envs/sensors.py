@@ -5,7 +5,7 @@ quadrant detector (the ``spot``: the incoming direction in the receiver frame ov
 gimbals report their pointing. These readings form one *packet* per step, which reaches the
 controller, at the transmitter, ``latency_steps`` steps late (the drone's readings travel back over an
 acoustic or optical return link); the beacon reading, taken at the transmitter, reaches it at once
-(:func:`waterair.envs.kernel.deliver`). Readings are noisy (relative and additive intensity noise, angular spot
+(:func:`waterair.envs.packets.deliver`). Readings are noisy (relative and additive intensity noise, angular spot
 noise), the photodiode saturates, and below an intensity threshold the detector sees no spot.
 
 The ideal sensor (every setting 0 or None) reports the true values at once; no random numbers are

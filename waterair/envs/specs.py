@@ -45,6 +45,7 @@ def make_specs(observation_size: int, dtype: torch.dtype) -> Specs:
         flat_point=vector(3),
         divergence=Unbounded(shape=(), dtype=torch.float64),
         tilt=vector(4),
+        pointed=vector(4),
         base_tilt=vector(4),
     )
     flag = Categorical(2, shape=(1,), dtype=torch.bool)

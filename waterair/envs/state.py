@@ -16,27 +16,31 @@ from typing import NamedTuple
 import torch
 
 from waterair.envs.sensors import packet_sizes
+from waterair.physics.actuator import DRIVE_WIDTH
 from waterair.physics.paths import Iterate
 from waterair.physics.surface import Harmonics
 
 
 class Tilts(NamedTuple):
-    """The commanded tilt vectors (v_x, v_y) of the transmitter and the receiver, ``[B, 2]`` each."""
+    """The tilt vectors pointed at (v_x, v_y) of the transmitter and the receiver, ``[B, 2]`` each."""
 
     tx_tilt: torch.Tensor
     rx_tilt: torch.Tensor
 
 
 class Moved(NamedTuple):
-    """The gimbals, the action history and the clock after an action (:func:`waterair.envs.kernel.advance`): the
-    tilts ``[B, 2]``, the last actions ``[B, history_length, 4]``, newest first, the time (s) and the steps since
-    the reset (int64), ``[B]`` each."""
+    """The ends, the action history and the clock after an action (:func:`waterair.envs.kernel.advance`): the
+    tilts pointed at ``[B, 2]``, the last actions ``[B, history_length, 4]``, newest first, the time (s) and the
+    steps since the reset (int64), ``[B]`` each, the tilts commanded ``[B, 4]`` and the actuators' drive state
+    ``[B, 4, DRIVE_WIDTH]`` (:class:`StepState`)."""
 
     tx_tilt: torch.Tensor
     rx_tilt: torch.Tensor
     action_history: torch.Tensor
     time: torch.Tensor
     steps: torch.Tensor
+    command: torch.Tensor
+    drive: torch.Tensor
 
     @property
     def tilts(self) -> Tilts:
@@ -50,7 +54,11 @@ class StepState:
     Attributes:
         sea: the links' resolved seas (the environment's surface).
         time, steps: the time (s) and the steps since the reset (int64), ``[B]``.
-        tx_tilt, rx_tilt: the commanded tilt vectors ``[B, 2]``.
+        tx_tilt, rx_tilt: the tilt vectors each end points at ``[B, 2]``.
+        command: the tilts commanded (tx_vx, tx_vy, rx_vx, rx_vy) ``[B, 4]``: where the ends point, without
+            actuators (``env.actuator.kind=ideal``).
+        drive: each axis's actuator state ``[B, 4, DRIVE_WIDTH]`` (the axes of ``command``; the gimbal's angle and
+            rate, the mirror's, from the mount: :mod:`waterair.envs.drives`); zeros without actuators.
         tx_position, rx_position: T and R (m) ``[B, 3]``.
         divergence: each link's ω_D (rad) ``[B]``, drawn at its reset, float64: as exact as the configuration's
             float, the gains take what they derive from it in float64 (optics.per_link).
@@ -71,6 +79,8 @@ class StepState:
     steps: torch.Tensor
     tx_tilt: torch.Tensor
     rx_tilt: torch.Tensor
+    command: torch.Tensor
+    drive: torch.Tensor
     tx_position: torch.Tensor
     rx_position: torch.Tensor
     divergence: torch.Tensor
@@ -101,6 +111,8 @@ class StepState:
             steps=zeros(kind=torch.int64),
             tx_tilt=zeros(2),
             rx_tilt=zeros(2),
+            command=zeros(4),
+            drive=zeros(4, DRIVE_WIDTH),
             tx_position=zeros(3),
             rx_position=zeros(3),
             divergence=zeros(kind=torch.float64),
@@ -122,6 +134,8 @@ class StepState:
             self,
             tx_tilt=moved.tx_tilt,
             rx_tilt=moved.rx_tilt,
+            command=moved.command,
+            drive=moved.drive,
             action_history=moved.action_history,
             time=moved.time,
             steps=moved.steps,

@@ -14,6 +14,8 @@ A coarse gimbal carrying a fine mirror (:func:`respond_pair`) points where the g
 adds within its range, the mirror commanded to the rest: the realistic terminal of a free-space optical link.
 
 Angles are in radians, rates in rad/s, and every tensor ``[..., axes]``: the functions act elementwise.
+:class:`Actuator` is an end's terminal as a configuration names it (``env.actuator.*``): no actuator (``ideal``), a
+gimbal, a fixed mount with a mirror, or a gimbal carrying a mirror; :func:`respond_terminal` steps it.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from typing import NamedTuple
 
 import torch
 
-from waterair.core.validation import check_range
+from waterair.core.validation import check_choice, check_range
 
 SUBSTEPS = 16
 """Sub-steps of a step where a limit binds: a slew at the rate limit is resolved to Δt / 16 (3 ms at 50 ms)."""
@@ -74,6 +76,15 @@ class Axis:
         a = torch.tensor([[0.0, 1.0], [-(w**2), -2.0 * z * w]], dtype=torch.float64)
         phi = torch.linalg.matrix_exp(a * dt).tolist()
         return (phi[0][0], phi[0][1]), (phi[1][0], phi[1][1])
+
+    def sampled_lag(self, dt: float) -> float:
+        """How far (s) the axis trails a ramp at the ends of steps of ``dt``, once settled, when each step commands
+        (held) the ramp's value at the step's end, within the limits: 2 ζ / ω_n − Δt / 2 for a slow axis, 0 for one
+        that settles within the step. At the step ends the error e = θ − r and the rate repeat: e = c (e − Δt),
+        c = p00 + p01 p10 / (1 − p11) (Φ's entries), so the lag is c Δt / (1 − c)."""
+        (p00, p01), (p10, p11) = self.transition(dt)
+        c = p00 + p01 * p10 / (1.0 - p11)
+        return c * dt / (1.0 - c)
 
     @property
     def limited(self) -> bool:
@@ -156,3 +167,91 @@ def respond_pair(gimbal: Axis, mirror: Axis, state: PairState, target: torch.Ten
     step), within the mirror's range."""
     coarse = respond(gimbal, state.gimbal, target, dt)
     return PairState(coarse, respond(mirror, state.mirror, target - coarse.angle, dt))
+
+
+TERMINALS = ("ideal", "gimbal", "fsm", "gimbal_fsm")
+"""What points an end (``env.actuator.kind``): nothing (each step's command is reached at once), a gimbal, a fast
+steering mirror on a mount fixed along the calm-sea path, or a gimbal carrying a mirror."""
+DRIVE_WIDTH = 4
+"""An axis's drive state as the environment keeps it: the gimbal's angle and rate, the mirror's angle and rate."""
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """Each end's pointing actuators, the same at both (docs/model.md §11: the presets, their sources).
+
+    Attributes:
+        kind: one of :data:`TERMINALS`.
+        gimbal_range ... gimbal_resolution: the gimbal's :class:`Axis` (both of its axes alike).
+        mirror_range ... mirror_resolution: the mirror's :class:`Axis`, its range and resolution those of the
+            beam's direction (twice the mirror's mechanical angle); its rate and acceleration are its response's.
+    """
+
+    kind: str = "ideal"
+    gimbal_range: float = math.pi / 4
+    gimbal_rate: float = 2.1
+    gimbal_acceleration: float = 35.0
+    gimbal_natural_frequency: float = 8.0
+    gimbal_damping: float = 0.7
+    gimbal_resolution: float = 1.0e-4
+    mirror_range: float = 0.0524
+    mirror_natural_frequency: float = 585.0
+    mirror_damping: float = 0.4
+    mirror_resolution: float = 2.0e-6
+
+    def __post_init__(self) -> None:
+        check_choice("kind", self.kind, TERMINALS)
+        for name, build in (("gimbal", lambda: self.gimbal), ("mirror", lambda: self.mirror)):
+            try:
+                build()
+            except ValueError as error:
+                raise ValueError(f"{name}_{error}") from None
+
+    @property
+    def gimbal(self) -> Axis:
+        return Axis(self.gimbal_range, self.gimbal_rate, self.gimbal_acceleration, self.gimbal_natural_frequency,
+                    self.gimbal_damping, self.gimbal_resolution)  # fmt: skip
+
+    @property
+    def mirror(self) -> Axis:
+        return Axis(self.mirror_range, math.inf, math.inf, self.mirror_natural_frequency, self.mirror_damping,
+                    self.mirror_resolution)  # fmt: skip
+
+    @property
+    def moves(self) -> bool:
+        """Whether the ends have actuators at all (``ideal``: the command is the pointing)."""
+        return self.kind != "ideal"
+
+    def lag(self, dt: float) -> float:
+        """How far (s) the pointing trails a slowly turning command given once per step of ``dt`` for the step's
+        end (:meth:`Axis.sampled_lag`): the mirror's, where a mirror takes out what the gimbal leaves, the gimbal's
+        alone, none without actuators."""
+        if not self.moves:
+            return 0.0
+        return (self.gimbal if self.kind == "gimbal" else self.mirror).sampled_lag(dt)
+
+    @property
+    def fixed_mount(self) -> bool:
+        """Whether the mirror sits on a mount fixed along the calm-sea path (``fsm``), not on a gimbal."""
+        return self.kind == "fsm"
+
+
+def respond_terminal(actuator: Actuator, drive: torch.Tensor, target: torch.Tensor, dt: float) -> torch.Tensor:
+    """The drive state ``[..., axes, DRIVE_WIDTH]`` (:data:`DRIVE_WIDTH`) after a step of ``dt`` toward the ``target``
+    angles ``[..., axes]`` (rad, from the terminal's mount), and the angles the terminal points at are its
+    :func:`terminal_angle`."""
+    gimbal, mirror = AxisState(drive[..., 0], drive[..., 1]), AxisState(drive[..., 2], drive[..., 3])
+    if actuator.kind == "gimbal":
+        gimbal = respond(actuator.gimbal, gimbal, target, dt)
+    elif actuator.kind == "fsm":
+        mirror = respond(actuator.mirror, mirror, target, dt)
+    elif actuator.kind == "gimbal_fsm":
+        gimbal, mirror = respond_pair(actuator.gimbal, actuator.mirror, PairState(gimbal, mirror), target, dt)
+    else:
+        raise ValueError(f"respond_terminal needs an actuator; {actuator.kind!r} points at once")
+    return torch.stack((gimbal.angle, gimbal.rate, mirror.angle, mirror.rate), dim=-1)
+
+
+def terminal_angle(drive: torch.Tensor) -> torch.Tensor:
+    """Where a terminal's axes ``[..., axes]`` point, from its mount: the gimbal's angle plus the mirror's."""
+    return drive[..., 0] + drive[..., 2]

@@ -1,0 +1,114 @@
+"""The ends' actuators in the step (env.actuator, waterair.envs.drives): the tilt commanded against the tilt pointed at,
+each checked against a closed form or a limit computed here."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from waterair.envs.config import EnvConfig
+from waterair.envs.env import WaterAirEnv
+from waterair.envs.kernel import flat_tilts
+
+SMALL = dict(num_envs=4, sea={"n_wavenumbers": 12, "n_dir": 8}, seed=3, dtype="float64", max_steps=60)
+TARGET = torch.tensor([0.30, -0.20, -0.25, 0.10], dtype=torch.float64)
+"""Absolute tilts each end is commanded to, from upright: a slew of 0.2-0.3 rad per axis."""
+
+
+def _commanded(env: WaterAirEnv, steps: int, target: torch.Tensor = TARGET) -> tuple[list, list]:
+    """The ``tilt`` and ``pointed`` keys over ``steps`` steps of one held absolute command ``target``."""
+    td = env.reset()
+    commanded, pointed = [], []
+    action = (target / env.config.max_tilt).expand(env.batch_size[0], 4)
+    for _ in range(steps):
+        td = env.step(td.set("action", action.clone()))["next"]
+        commanded.append(td["tilt"].clone())
+        pointed.append(td["pointed"].clone())
+    return commanded, pointed
+
+
+def _step_response(t: float, f_n: float, zeta: float) -> float:
+    """θ(t) / u of θ'' = ω²(u − θ) − 2ζωθ' from rest, ζ < 1 (the textbook form)."""
+    w = 2 * math.pi * f_n
+    wd = w * math.sqrt(1 - zeta**2)
+    return 1 - math.exp(-zeta * w * t) * (math.cos(wd * t) + zeta / math.sqrt(1 - zeta**2) * math.sin(wd * t))
+
+
+def test_without_actuators_the_ends_point_where_they_are_commanded():
+    commanded, pointed = _commanded(WaterAirEnv(EnvConfig(**SMALL)), 3)
+    for tilt, at in zip(commanded, pointed, strict=True):
+        assert torch.equal(tilt, at)
+        assert torch.allclose(tilt, TARGET.expand_as(tilt), atol=1e-12)
+
+
+def test_an_unlimited_gimbal_follows_the_second_order_step_response_in_each_axis_angle():
+    actuator = dict(kind="gimbal", gimbal_rate=math.inf, gimbal_acceleration=math.inf, gimbal_resolution=0.0,
+                    gimbal_natural_frequency=2.0, gimbal_damping=0.5)  # fmt: skip
+    env = WaterAirEnv(EnvConfig(**SMALL, actuator=actuator))
+    _, pointed = _commanded(env, 12)
+    angles = torch.asin(TARGET)
+    for n, at in enumerate(pointed, start=1):
+        expected = torch.sin(angles * _step_response(n * env.config.dt, 2.0, 0.5))
+        assert torch.allclose(at, expected.expand_as(at), rtol=1e-9, atol=1e-12)
+
+
+def test_a_rate_limited_gimbal_slews_no_faster_than_its_rate_and_arrives():
+    env = WaterAirEnv(EnvConfig(**SMALL, actuator={"kind": "gimbal", "gimbal_rate": 1.0, "gimbal_resolution": 0.0}))
+    commanded, pointed = _commanded(env, 40)
+    angles = [torch.zeros(4, 4, dtype=torch.float64)] + [torch.asin(at) for at in pointed]
+    steps = torch.stack([b - a for a, b in zip(angles, angles[1:], strict=False)]).abs()
+    assert steps.max() <= 1.0 * env.config.dt + 1e-12  # 1 rad/s over 50 ms
+    assert torch.allclose(commanded[0], TARGET.expand(4, 4))  # the command is at once ...
+    assert (pointed[2] - TARGET).abs().max() > 0.1  # ... the pointing not ...
+    assert torch.allclose(pointed[-1], TARGET.expand(4, 4), atol=1e-3)  # ... until the slew is done
+
+
+def test_a_mirror_on_a_gimbal_takes_out_what_the_gimbal_leaves():
+    slow = {"gimbal_rate": 1.0, "gimbal_resolution": 0.0, "mirror_resolution": 0.0}
+    _, gimbal = _commanded(WaterAirEnv(EnvConfig(**SMALL, actuator={"kind": "gimbal", **slow})), 8)
+    _, both = _commanded(WaterAirEnv(EnvConfig(**SMALL, actuator={"kind": "gimbal_fsm", **slow})), 8)
+    mirror_range = EnvConfig().actuator.mirror_range
+    for n in range(8):
+        left = (torch.asin(TARGET) - torch.asin(gimbal[n][0])).abs()
+        removed = (torch.asin(gimbal[n][0]) - torch.asin(both[n][0])).abs()
+        # the mirror (575 Hz) settles within the step: it removes the gimbal's error up to its range
+        assert torch.allclose(removed, torch.minimum(left, torch.full_like(left, mirror_range)), atol=2e-4)
+
+
+def test_a_fixed_mirror_starts_on_the_calm_sea_path_and_never_leaves_its_range_around_it():
+    env = WaterAirEnv(EnvConfig(**SMALL, actuator={"kind": "fsm", "mirror_range": 0.02}))
+    td = env.reset()
+    mount = flat_tilts(env.state.flat_point, env.state.tx_position, env.state.rx_position)
+    assert torch.allclose(td["pointed"], mount) and torch.allclose(td["tilt"], mount)
+    _, pointed = _commanded(env, 5)
+    for at in pointed:
+        deflection = (torch.asin(at) - torch.asin(mount)).abs()
+        assert deflection.max() <= 0.02 + 1e-12
+        assert deflection.max() >= 0.02 - 1e-6  # the command is further than the mirror reaches: it is at its stop
+
+
+def test_delta_actions_move_the_command_not_the_lagging_pointing():
+    config = EnvConfig(**SMALL, action_mode="delta", actuator={"kind": "gimbal", "gimbal_rate": 0.2})
+    env = WaterAirEnv(config)
+    td = env.reset()
+    for n in range(1, 4):
+        td = env.step(td.set("action", torch.ones(4, 4, dtype=torch.float64)))["next"]
+        slew = math.sin(math.radians(config.max_slew_deg_s * config.dt))
+        assert torch.allclose(td["tilt"], torch.full((4, 4), n * slew, dtype=torch.float64))
+    assert (td["pointed"] < td["tilt"] - 1e-3).all()  # 0.2 rad/s lags 60 deg/s
+
+
+@pytest.mark.parametrize(
+    ("actuator", "message"),
+    [
+        ({"kind": "laser"}, "env.actuator.kind = 'laser'"),
+        ({"kind": "gimbal", "gimbal_rate": -1.0}, "env.actuator.gimbal_rate = -1.0 is out of range"),
+        ({"mirror_damping": 0.0}, "env.actuator.mirror_damping = 0.0 is out of range"),
+        ({"slew": 1.0}, "env.actuator.slew is not a known key"),
+    ],
+)
+def test_actuator_keys_are_validated_by_name(actuator, message):
+    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(".", r"\.")):
+        EnvConfig(actuator=actuator)
