@@ -12,6 +12,7 @@ import math
 
 import torch
 
+from waterair.envs import kalman
 from waterair.envs.baselines import FlatSeaSnell, PointingPolicy
 from waterair.envs.sensors import back_projection, beacon_pointing, intensity_from_feature, read_parked
 from waterair.physics.channel import pointing
@@ -42,7 +43,7 @@ class BeaconTracker(PointingPolicy):
         flat = FlatSeaSnell.directions(self, tensordict)
         observation, part = tensordict.get("observation"), self.env.observation_part
         beacon = (
-            pointing(tensordict.get("tilt")[:, :2], up=True),  # read with the present pointing, at once
+            pointing(tensordict.get("pointed")[:, :2], up=True),  # read with the present pointing, at once
             part(observation, "beacon"),
             part(observation, "beacon_valid")[:, 0] > 0.5,
         )
@@ -89,6 +90,81 @@ class BeaconPredictor(BeaconTracker):
         ahead = torch.where((tracked & self.tracked).unsqueeze(-1), unit_vector(now + move), now)
         self.last, self.tracked = now, tracked
         return ahead[0], ahead[1]
+
+
+class KalmanTracker(BeaconTracker):
+    """The beacon tracker's readings, each end's filtered and pointed ahead: a Kalman filter on each component's
+    angle and rate (:mod:`waterair.envs.kalman`), tuned from the configuration, not by hand.
+
+    * The reading: each end's ``beacon_tracker`` direction, as a tilt; its variance the sensor's noise
+      (``beacon_noise_rad`` at the transmitter, ``spot_noise_rad`` at the receiver), at least :data:`FLOOR`.
+    * The motion: white acceleration of the variance the link's own sea gives the direction of its light, the
+      slope's acceleration Σ a² k_c² ω⁴ / 2 per component c over the resolved harmonics, times the share of a
+      slope the refracted light turns by (1 − n_air/n_water at the transmitter, n_water/n_air − 1 at the
+      receiver); a track starts at the slope rate's variance, Σ a² k_c² ω² / 2 times the same.
+    * Pointing ahead over what separates the reading from the pointing it sets: one step at the transmitter,
+      ``latency_steps + 1`` at the receiver, and the actuators' lag (``env.actuator``: how far the axis that
+      points last trails a ramp commanded once a step; none without actuators).
+    * A reading lost, read with the gimbals parked at the reset, or beyond :data:`GATE` standard deviations of its
+      innovation (the centroid jumping between refraction points) starts that end's track again: it points as
+      the beacon tracker does until its next reading.
+
+    It keeps each link's tracks; the seas are the environment's (a batch of its links, or one replica's: the
+    replicas share their seas).
+    """
+
+    name = "kalman_tracker"
+    GATE = 4.0
+    FLOOR = 1e-4
+    """The smallest reading noise (rad) assumed: the detectors' resolution, where the sensor model has none."""
+
+    def __init__(self, env, config=None):
+        super().__init__(env, config)
+        self.track: kalman.Track | None = None  # [2 ends, n, 2 components]
+
+    def _sea_variances(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """The white acceleration's and the starting rate's variances ``[2, B, 2]`` (ends, links, components)."""
+        sea = self.env.surface.harmonics
+        slope = sea.amplitude.double().square().unsqueeze(-1) * torch.stack((sea.kx, sea.ky), -1).double().square()
+        omega = sea.omega.double().unsqueeze(-1)
+        optics = self.env.optics
+        share = torch.tensor(
+            [1 - optics.n_air / optics.n_water, optics.n_water / optics.n_air - 1], dtype=torch.float64
+        )
+        acceleration = (slope * omega**4).sum(1) / 2, (slope * omega**2).sum(1) / 2  # [B, 2] each
+        return tuple(share.view(2, 1, 1).to(sea.omega.device) ** 2 * each.unsqueeze(0) for each in acceleration)
+
+    def _rows(self, variance: torch.Tensor, rows: int) -> torch.Tensor:
+        batch = variance.shape[1]
+        if rows not in (batch, batch // self.env.config.replicas):
+            raise ValueError(f"kalman_tracker acts on its environment's {batch} links or one replica's, not {rows}")
+        return variance[:, :rows]
+
+    def directions(self, tensordict):
+        tracker = torch.stack(super().directions(tensordict))  # [2, n, 3]
+        reading = tracker[..., :2].double()
+        observation, part = tensordict.get("observation"), self.env.observation_part
+        seen = torch.stack((part(observation, "beacon_valid")[:, 0], part(observation, "spot_valid")[:, 0])) > 0.5
+        parked = torch.stack((parked_reading(self.env, observation, 0),
+                              parked_reading(self.env, observation, self.config.latency_steps)))  # fmt: skip
+        usable = (seen & ~parked).unsqueeze(-1).expand_as(reading)
+        noise = torch.tensor([self.config.beacon_noise_rad, self.config.spot_noise_rad], dtype=torch.float64)
+        variance = noise.clamp(min=self.FLOOR).square().to(reading.device).view(2, 1, 1).expand_as(reading)
+        acceleration, rate = (self._rows(each, reading.shape[1]) for each in self._sea_variances())  # this episode's
+        fresh = kalman.begin(reading, variance, rate)
+        if self.track is None or self.track.state.shape[:-1] != reading.shape:
+            self.track, usable = fresh, torch.zeros_like(usable)
+        dt = self.env.config.dt
+        predicted = kalman.predict(self.track, dt, acceleration)
+        updated, inside = kalman.update(predicted, reading, variance, self.GATE)
+        tracking = usable & inside  # both components of an end are tracked together
+        tracking = tracking.all(-1, keepdim=True).expand_as(tracking)
+        self.track = kalman.choose(tracking, updated, fresh)
+        lag = self.env.config.actuator.lag(dt)
+        lead = torch.tensor([dt + lag, dt * (self.config.latency_steps + 1) + lag], dtype=torch.float64)
+        tilt = torch.where(tracking, kalman.ahead(self.track, lead.to(reading.device).view(2, 1, 1)), reading)
+        tilt = tilt.to(tracker.dtype)
+        return pointing(tilt[0], up=True), pointing(tilt[1], up=False)
 
 
 class AoATracker(PointingPolicy):
@@ -243,7 +319,7 @@ def parked_reading(env, observation: torch.Tensor, latency_steps: int) -> torch.
     return read_parked(steps, latency_steps)
 
 
-CONTROLLERS = {cls.name: cls for cls in (BeaconTracker, BeaconPredictor, AoATracker, IntensityDither)}
+CONTROLLERS = {cls.name: cls for cls in (BeaconTracker, BeaconPredictor, KalmanTracker, AoATracker, IntensityDither)}
 """Classical controllers by name, the one that senses more first (of two that sense alike, the simpler)."""
 
 

@@ -23,6 +23,7 @@ STYLES = {
     "tracking": ("tab:purple", "v", ":", 1.4),
     "beacon_tracker": ("darkgoldenrod", "X", (0, (8, 2)), 1.7),
     "beacon_predictor": ("teal", "H", (0, (6, 1, 1, 1, 1, 1)), 1.7),
+    "kalman_tracker": ("navy", "1", (0, (10, 2, 1, 2)), 1.7),
     "aoa_tracker": ("tab:pink", "p", (0, (5, 1)), 1.6),
     "intensity_dither": ("tab:brown", "d", (0, (3, 1, 1, 1, 1, 1)), 1.4),
     "flat_snell": ("tab:green", "s", "--", 1.4),
@@ -33,6 +34,7 @@ STYLES = {
 SENSING_STYLES = {
     "beacon_tracker": ("olivedrab", "8", (0, (8, 2, 2, 2)), 1.7),
     "beacon_predictor": ("darkslategray", "+", (0, (6, 2, 1, 2, 1, 2)), 1.7),
+    "kalman_tracker": ("steelblue", "4", (0, (10, 1, 2, 1)), 1.7),
     "aoa_tracker": ("darkmagenta", "<", (0, (2, 2)), 1.6),
     "intensity_dither": ("saddlebrown", ">", (0, (4, 2, 1, 2)), 1.4),
 }
