@@ -11,6 +11,7 @@ import torch
 from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.kernel import flat_tilts
+from waterair.evaluation.groups import policy_groups
 
 SMALL = dict(num_envs=4, sea={"n_wavenumbers": 12, "n_dir": 8}, seed=3, dtype="float64", max_steps=60)
 TARGET = torch.tensor([0.30, -0.20, -0.25, 0.10], dtype=torch.float64)
@@ -112,3 +113,21 @@ def test_delta_actions_move_the_command_not_the_lagging_pointing():
 def test_actuator_keys_are_validated_by_name(actuator, message):
     with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(".", r"\.")):
         EnvConfig(actuator=actuator)
+
+
+def test_a_replica_not_actuated_points_where_it_commands_beside_one_that_slews():
+    config = EnvConfig(**{**SMALL, "num_envs": 8}, replicas=2, replica_actions=({}, {"actuated": False}),
+                       actuator={"kind": "gimbal", "gimbal_rate": 1.0})  # fmt: skip
+    commanded, pointed = _commanded(WaterAirEnv(config), 3)
+    assert torch.equal(pointed[-1][4:], commanded[-1][4:])  # replica 1: the command, at once
+    assert (pointed[-1][:4] - commanded[-1][:4]).abs().max() > 0.05  # replica 0: still slewing
+
+
+def test_evaluation_runs_the_kinematic_reference_without_the_actuators_and_the_controllers_through_them():
+    base = EnvConfig(num_envs=4, actuator={"kind": "gimbal_fsm"})
+    ((config, members),) = policy_groups(base, ["tracking", "beacon_tracker", "flat_snell"], [])
+    actuated = [dict(way).get("actuated", True) for way in config.replica_actions]
+    assert [label for label, _ in members] == ["tracking", "beacon_tracker", "flat_snell"]
+    assert actuated == [False, True, True]
+    ((ideal, _),) = policy_groups(base.replace(actuator={"kind": "ideal"}), ["tracking", "flat_snell"], [])
+    assert ideal.replica_actions is None  # nothing to bypass: the step is the one every release ran

@@ -46,7 +46,7 @@ RESIDUAL_BASES = ("flat_snell", "aoa_tracker", "beacon_tracker")
 along its own reading (the beacon at the transmitter, the spot at the receiver)."""
 BASE_NEEDS = {"aoa_tracker": ("spot", "spot_valid"), "beacon_tracker": ("spot", "spot_valid", "beacon", "beacon_valid")}
 """The observation parts each residual base reads."""
-ACTION_KEYS = ("action_mode", "residual_deg", "residual_beams", "residual_base")
+ACTION_KEYS = ("action_mode", "residual_deg", "residual_beams", "residual_base", "actuated")
 """The keys that say how an action turns into tilts, which ``replica_actions`` may set per replica."""
 OBSERVATION_EXTRAS = ("spot", "spot_valid", "beacon", "beacon_valid", "history", "action_history", "geometry",
                       "divergence")  # fmt: skip
@@ -88,6 +88,7 @@ class EnvConfig:
     residual_base: str = "flat_snell"  # residual mode: flat_snell | aoa_tracker | beacon_tracker (BASE_NEEDS)
     max_tilt_deg: float = 45.0  # largest pointing tilt from vertical
     max_slew_deg_s: float = 60.0  # delta mode: largest tilt change per second
+    actuated: bool = True  # false: the ends point where commanded whatever env.actuator (the kinematic references)
     observation_extras: tuple[str, ...] = ()  # any of OBSERVATION_EXTRAS; presets: env/observation=
     history_length: int = 4  # readings kept by the "history" and "action_history" extras
     frames: int = 1  # the last `frames` observations side by side, newest first (1: no stacking)
@@ -161,6 +162,8 @@ class EnvConfig:
         check_range("env.dt", self.dt, 0.0, 10.0, low_open=True, unit="s")
         check_int("env.max_steps", self.max_steps, 1, 10**7)
         check_choice("env.action_mode", self.action_mode, ACTION_MODES)
+        if not isinstance(self.actuated, bool):
+            raise ValueError(f"env.actuated = {self.actuated!r} must be true or false")
         check_range("env.max_tilt_deg", self.max_tilt_deg, 0.0, 90.0, low_open=True, high_open=True, unit="deg")
         check_range("env.max_slew_deg_s", self.max_slew_deg_s, 0.0, 1e5, low_open=True, unit="deg/s")
         check_range("env.residual_deg", self.residual_deg, 0.0, 90.0, low_open=True, high_open=True, unit="deg")

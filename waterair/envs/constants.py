@@ -22,17 +22,19 @@ from waterair.physics.paths import FixedNewtonOptions
 
 class Actions(NamedTuple):
     """How an action turns into tilts (docs/environment.md, "Interface"): ``mode`` (``env.action_mode``), ``residual``
-    sin(``env.residual_deg``), ``base`` (``env.residual_base``) and ``beams`` (``env.residual_beams``)."""
+    sin(``env.residual_deg``), ``base`` (``env.residual_base``), ``beams`` (``env.residual_beams``), and whether the
+    tilts go through the ends' actuators (``env.actuated``)."""
 
     mode: str
     residual: float
     base: str
     beams: float | None
+    actuated: bool = True
 
     @classmethod
     def of(cls, config: EnvConfig) -> Actions:
         return cls(config.action_mode, math.sin(math.radians(config.residual_deg)), config.residual_base,
-                   config.residual_beams)  # fmt: skip
+                   config.residual_beams, config.actuated)  # fmt: skip
 
     def traced(self, device: torch.device, dtype: torch.dtype) -> Actions:
         """With the residual's range as one-element tensors (:meth:`StepConstants.traced`; tensors only in the
@@ -94,7 +96,7 @@ class StepConstants:
             beacon=config.beacon if config.senses_beacon else None,
             replica_actions=tuple(distinct),
             replica_choice=tuple(distinct.index(a) for a in each) if distinct else (),
-            actuator=config.actuator if config.actuator.moves else None,
+            actuator=config.actuator if config.actuator.moves and any(a.actuated for a in each) else None,
         )
 
     def for_links(self, divergence: torch.Tensor, replica: torch.Tensor | None = None) -> StepConstants:

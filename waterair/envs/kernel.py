@@ -65,19 +65,24 @@ def advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
 
 def _advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
     """:func:`advance` with ``c`` already for the links (each row's latency, where replicas sense otherwise)."""
+    actuated: torch.Tensor | None = None  # the rows whose tilts go through the actuators (None: every row)
     if c.replica_actions:  # replica k's rows [k·n, (k+1)·n) act its own way: each way on every row, then chosen
         ways = [aimed_tilts(c, actions, state, action) for actions in c.replica_actions]
         way = torch.tensor(c.replica_choice, device=action.device)[c.replica_of_rows(action)].unsqueeze(-1)
         tx, rx = ways[0]
         for index, (tx_k, rx_k) in enumerate(ways[1:], start=1):
             tx, rx = torch.where(way == index, tx_k, tx), torch.where(way == index, rx_k, rx)
+        if not all(actions.actuated for actions in c.replica_actions):
+            actuated = torch.tensor([a.actuated for a in c.replica_actions], device=action.device)[way]
     else:
         tx, rx = aimed_tilts(c, c.actions, state, action)
     tx, rx = limit_tilt(tx, c.max_tilt), limit_tilt(rx, c.max_tilt)
     command, drive = torch.cat((tx, rx), dim=-1), state.drive
     if c.actuator is not None:  # the actuators' response to the command (docs/model.md §11)
         pointed, drive = drives.drive(c, state, command)
-        tx, rx = limit_tilt(pointed[:, :2], c.max_tilt), limit_tilt(pointed[:, 2:], c.max_tilt)
+        pointed = torch.cat((limit_tilt(pointed[:, :2], c.max_tilt), limit_tilt(pointed[:, 2:], c.max_tilt)), -1)
+        pointed = pointed if actuated is None else torch.where(actuated, pointed, command)
+        tx, rx = pointed[:, :2], pointed[:, 2:]
     return Moved(
         tx_tilt=tx,
         rx_tilt=rx,

@@ -101,6 +101,7 @@ KEYS: dict[str, tuple[str, str]] = {
     ),
     "max_tilt_deg": ("deg", "(0, 90)"),
     "max_slew_deg_s": ("deg/s", "(0, 1e5]"),
+    "actuated": ("–", "true, false (the ends point where commanded whatever `actuator`: the kinematic references)"),
     "observation_extras": (
         "–",
         "any of spot, spot_valid, beacon, beacon_valid, history, action_history, geometry, divergence (presets below)",
