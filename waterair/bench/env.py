@@ -43,9 +43,10 @@ def worker(
     channel: str = "single_path",
     sea="paper",
     lattice: str = "",
+    actuator: str = "ideal",
 ) -> dict:
     """Time raw ``env.step`` and ``env.rollout`` at one batch size (runs inside the worker); ``lattice``
-    "nodes:span" sets the full channel's lattice (default: the env's)."""
+    "nodes:span" sets the full channel's lattice (default: the env's), ``actuator`` the ends' (``env/actuator``)."""
     baseline_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     start = time.perf_counter()
     env = WaterAirEnv(
@@ -57,6 +58,7 @@ def worker(
         dtype=dtype,
         max_steps=10**6,
         channel={"name": channel, **lattice_settings(lattice)},
+        actuator={"kind": actuator},
         **SEAS[sea],
     )
     td = env.reset()
@@ -97,6 +99,7 @@ def worker(
         "solver": solver,
         "channel": channel,
         "sea": sea,
+        "actuator": actuator,
         "steps_timed": steps,
         "step_s": step_s,
         "env_steps_per_s": batch / step_s,
@@ -162,26 +165,31 @@ def lattice_settings(lattice: str) -> dict:
     return {"nodes": int(nodes), "span": float(span)}
 
 
-def run_worker(
-    batch: int, solver: str, compile_kernel: bool, device: str, dtype: str, channel: str, sea: str, lattice: str = ""
-):
-    """One :func:`worker` in a fresh process; its record."""
+def run_worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype: str, *case: str):
+    """One :func:`worker` in a fresh process; its record. ``case``: the channel, the sea, the lattice and the
+    actuator, each as :func:`worker` takes it (the last two may be left out)."""
+    case = (*case, *("single_path", "paper", "", "ideal")[len(case) :])
     args = [sys.executable, "-m", "waterair.bench.env", str(batch), solver, str(int(compile_kernel))]
-    done = subprocess.run([*args, device, dtype, channel, sea, lattice], capture_output=True, text=True, check=False)
+    done = subprocess.run([*args, device, dtype, *case], capture_output=True, text=True, check=False)
     if done.returncode != 0:
-        raise RuntimeError(f"env benchmark worker B={batch} {solver} {channel} failed:\n{done.stderr[-2000:]}")
+        raise RuntimeError(f"env benchmark worker B={batch} {solver} {' '.join(case)} failed:\n{done.stderr[-2000:]}")
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def bench_channels(sizes, compile_kernel: bool, device: str, dtype: str, lattices=("",)) -> dict:
     """The channel models side by side, in one run: (channel, sea) for every B, each in its own process; the
-    full channel on the measured-slope sea once per lattice ("nodes:span", "" the default)."""
+    full channel on the measured-slope sea once per lattice ("nodes:span", "" the default), and once more through
+    a gimbal carrying a mirror at each end (``env/actuator=gimbal_fsm``: what the actuators cost a step)."""
     rows = []
-    cases = [("single_path", "paper", ""), ("full", "paper", ""), ("single_path", "ocean", "")]
-    cases += [("full", "ocean", lattice) for lattice in lattices]
+    cases = [
+        ("single_path", "paper", "", "ideal"),
+        ("full", "paper", "", "ideal"),
+        ("single_path", "ocean", "", "ideal"),
+    ]
+    cases += [("full", "ocean", lattice, "ideal") for lattice in lattices] + [("full", "ocean", "", "gimbal_fsm")]
     for batch in sizes:
-        for channel, sea, lattice in cases:
-            rows.append(run_worker(batch, "newton", compile_kernel, device, dtype, channel, sea, lattice))
+        for channel, sea, lattice, actuator in cases:
+            rows.append(run_worker(batch, "newton", compile_kernel, device, dtype, channel, sea, lattice, actuator))
             rows[-1]["lattice"] = lattice
             print(env_row(rows[-1]), flush=True)
     resolved = resolve_device(device)
@@ -243,13 +251,13 @@ def _label(r: dict) -> str:
     if r.get("channel", "single_path") == "single_path" and r.get("sea", "paper") == "paper":
         return r["solver"]
     lattice = f" ({r['lattice'].replace(':', ' nodes ±')} σ)" if r.get("lattice") else ""
-    return f"{r['channel']}, {r['sea']}{lattice}"
+    actuator = f", {r['actuator']}" if r.get("actuator", "ideal") != "ideal" else ""
+    return f"{r['channel']}, {r['sea']}{lattice}{actuator}"
 
 
 if __name__ == "__main__":
     from waterair.core.process import set_up_process
 
     set_up_process()  # as train.py's process
-    batch_arg, solver_arg, compile_arg, device_arg, dtype_arg, channel_arg, sea_arg, lattice_arg = sys.argv[1:9]
-    settings = (solver_arg, bool(int(compile_arg)), device_arg, dtype_arg, channel_arg, sea_arg, lattice_arg)
-    print(json.dumps(worker(int(batch_arg), *settings)))
+    batch_arg, solver_arg, compile_arg, device_arg, dtype_arg, *case_args = sys.argv[1:10]
+    print(json.dumps(worker(int(batch_arg), solver_arg, bool(int(compile_arg)), device_arg, dtype_arg, *case_args)))
