@@ -11,7 +11,7 @@ import torch
 from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.kernel import flat_tilts
-from waterair.evaluation.groups import policy_groups
+from waterair.evaluation.rollouts import kinematic, rollout_policies
 
 SMALL = dict(num_envs=4, sea={"n_wavenumbers": 12, "n_dir": 8}, seed=3, dtype="float64", max_steps=60)
 TARGET = torch.tensor([0.30, -0.20, -0.25, 0.10], dtype=torch.float64)
@@ -124,10 +124,12 @@ def test_a_replica_not_actuated_points_where_it_commands_beside_one_that_slews()
 
 
 def test_evaluation_runs_the_kinematic_reference_without_the_actuators_and_the_controllers_through_them():
-    base = EnvConfig(num_envs=4, actuator={"kind": "gimbal_fsm"})
-    ((config, members),) = policy_groups(base, ["tracking", "beacon_tracker", "flat_snell"], [])
-    actuated = [dict(way).get("actuated", True) for way in config.replica_actions]
-    assert [label for label, _ in members] == ["tracking", "beacon_tracker", "flat_snell"]
-    assert actuated == [False, True, True]
-    ((ideal, _),) = policy_groups(base.replace(actuator={"kind": "ideal"}), ["tracking", "flat_snell"], [])
-    assert ideal.replica_actions is None  # nothing to bypass: the step is the one every release ran
+    members = [("tracking", "tracking"), ("snell", "flat_snell")]
+    base = EnvConfig(**{**SMALL, "num_envs": 2}, replicas=2, actuator={"kind": "gimbal", "gimbal_rate": 0.5})
+    assert kinematic(base, members) == ({"actuated": False}, {})
+    assert kinematic(base.replace(actuator={"kind": "ideal"}), members) is None  # nothing to bypass
+    point, ideal = [(12.0, 0.1, 0.0)], base.replace(num_envs=1, replicas=1, actuator={"kind": "ideal"})
+    runs = rollout_policies(base, members, point, 2, 6, seed=1)
+    alone = {label: rollout_policies(ideal, [(label, name)], point, 2, 6, seed=1)[label] for label, name in members}
+    assert torch.equal(runs["tracking"]["gain"], alone["tracking"]["gain"])  # tracking: as without actuators
+    assert not torch.equal(runs["snell"]["gain"], alone["snell"]["gain"])  # flat-sea Snell slews through its gimbal

@@ -39,10 +39,7 @@ def policy_groups(base: EnvConfig, baselines: list[str], learned, together: bool
                 label = f"{label} #{labels.count(label)}"
             members += [(f"{name} ({label})", Sensed(name, dict(sensing))) for name in controllers]
     if not together:
-        alone = [
-            (reference.replace(**getattr(m, "sensing", {}), **kinematic(m, reference)), [(label, m)])
-            for label, m in members
-        ]
+        alone = [(reference.replace(**getattr(m, "sensing", {})), [(label, m)]) for label, m in members]
         return alone + [(c, [(p.label, a)]) for p, c, a in learned]
     groups: list[tuple[EnvConfig, list]] = [(reference, members)] if members else []
     for policy, env_config, actor in learned:
@@ -94,9 +91,7 @@ def joined(group: EnvConfig, member):
 def side_by_side(config: EnvConfig, members) -> EnvConfig:
     """``config`` for ``members`` side by side, a replica each (rollouts set the links): each replica acting and
     sensing its member's way where a member does otherwise (``env.replica_actions``, ``env.replica_sensing``)."""
-    ways = tuple(
-        member.actions if isinstance(member, JoinedPolicy) else kinematic(member, config) for _, member in members
-    )
+    ways = tuple(member.actions if isinstance(member, JoinedPolicy) else {} for _, member in members)
     sensing = tuple(
         {key: value for key, value in member.sensing.items() if getattr(config, key) != value}
         if isinstance(member, JoinedPolicy | Sensed)
@@ -109,16 +104,6 @@ def side_by_side(config: EnvConfig, members) -> EnvConfig:
         replica_actions=ways if any(ways) else None,
         replica_sensing=sensing if any(sensing) else None,
     )
-
-
-KINEMATIC = ("tracking",)
-"""The kinematic references: they point where they command, whatever the ends' actuators (``env.actuated``)."""
-
-
-def kinematic(member, config: EnvConfig) -> dict:
-    """The action keys a member acts by beyond the group's ``config``: a kinematic reference's ends are not
-    actuated, where the ends have actuators."""
-    return {"actuated": False} if reference_name(member) in KINEMATIC and config.actuator.moves else {}
 
 
 def reading(config: EnvConfig, names: Iterable[str]) -> EnvConfig:

@@ -72,6 +72,20 @@ def reference_name(member) -> str | None:
     return member if isinstance(member, str) else member.name if isinstance(member, Sensed) else None
 
 
+KINEMATIC = ("tracking",)
+"""The kinematic references: they point where they command, whatever the ends' actuators (``env.actuated``)."""
+
+
+def kinematic(config: EnvConfig, members) -> tuple | None:
+    """``config``'s ways of acting per replica (``env.replica_actions``), a kinematic reference's not actuated where
+    the ends have actuators."""
+    ways = [dict(way) for way in config.replica_actions or [()] * len(members)]
+    if not config.actuator.moves or not any(reference_name(m) in KINEMATIC for _, m in members):
+        return config.replica_actions
+    return tuple({**way, "actuated": False} if reference_name(m) in KINEMATIC else way
+                 for way, (_, m) in zip(ways, members, strict=True))  # fmt: skip
+
+
 def rollout_policies(env_config: EnvConfig, members, points, realisations: int, steps: int, seed: int) -> dict:
     """Traces ``[R, P, T]`` (CPU) per member ``(label, policy or baseline name)``, all on the same seas.
 
@@ -86,6 +100,7 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
         env_config.replace(
             num_envs=links * len(members),
             replicas=len(members),
+            replica_actions=kinematic(env_config, members),
             wind_values=winds,
             offset_values=offsets,
             offset_azimuth_values=azimuths,
