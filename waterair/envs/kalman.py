@@ -3,11 +3,11 @@ runs on each end's reading (docs/environment.md, "Classical controllers").
 
 Each component of a reading (a tilt's v_x or v_y, about its angle for the small angles a beam moves by) is a
 track of (angle, rate) under piecewise-constant white acceleration (Bar-Shalom, Li and Kirubarajan, *Estimation
-with Applications to Tracking and Navigation*, §6.3.3): over a step Δt the state moves by F = [[1, Δt], [0, 1]]
-and gains the covariance σ_a² g gᵀ, g = (Δt²/2, Δt). A reading of variance r updates the angle; one further than
-``gate`` standard deviations of its innovation from the prediction (the light's centroid jumping between refraction
-points) starts the track again from it. Every tensor is ``[..., 2]`` for a state, ``[..., 2, 2]`` for a
-covariance, ``[...]`` for the rest: the functions act elementwise over the leading dimensions.
+with Applications to Tracking and Navigation*, Wiley 2001, ch. 6): over a step Δt the state moves by
+F = [[1, Δt], [0, 1]] and gains the covariance σ_a² g gᵀ, g = (Δt²/2, Δt). A reading of variance r updates the
+angle; one further than ``gate`` standard deviations of its innovation from the prediction (the light's centroid
+jumping between refraction points) starts the track again from it. Every tensor is ``[..., 2]`` for a state,
+``[..., 2, 2]`` for a covariance, ``[...]`` for the rest: the functions act elementwise over the leading dimensions.
 """
 
 from __future__ import annotations
