@@ -18,11 +18,17 @@ from waterair.physics.actuator import Actuator, respond_terminal, terminal_angle
 from waterair.physics.optics import unit_vector
 
 
+def flat_tilts(point: torch.Tensor, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
+    """The tilts ``[n, 4]`` (tx_vx, tx_vy, rx_vx, rx_vy) pointing both ends at the calm-sea path point ``[n, 3]``."""
+    return torch.cat((unit_vector(point - tx)[:, :2], unit_vector(point - rx)[:, :2]), dim=-1)
+
+
 def mount_tilts(actuator: Actuator, flat_point, tx_position, rx_position) -> torch.Tensor:
     """The tilts ``[n, 4]`` each end's actuator is centred on: along the calm-sea path point ``[n, 3]`` for a
-    fixed mount, the vertical otherwise."""
-    along = torch.cat((unit_vector(flat_point - tx_position)[:, :2], unit_vector(flat_point - rx_position)[:, :2]), -1)
-    return along if actuator.fixed_mount else torch.zeros_like(along)
+    fixed mount (:func:`flat_tilts`), the vertical otherwise."""
+    if actuator.fixed_mount:
+        return flat_tilts(flat_point, tx_position, rx_position)
+    return torch.zeros(flat_point.shape[0], 4, dtype=flat_point.dtype, device=flat_point.device)
 
 
 def drive(c: StepConstants, state: StepState, command: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

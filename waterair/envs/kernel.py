@@ -26,6 +26,7 @@ import torch
 from waterair.envs import drives
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
 from waterair.envs.constants import Actions, StepConstants
+from waterair.envs.drives import flat_tilts
 from waterair.envs.packets import deliver, pack
 from waterair.envs.sensors import (
     SensorNoise,
@@ -127,11 +128,6 @@ def residual_reach(actions: Actions, divergence: torch.Tensor) -> torch.Tensor:
     reach = torch.full_like(divergence, 1.0) * actions.residual
     tx = reach if actions.beams is None else torch.minimum(actions.beams * divergence, reach)
     return torch.stack((tx, reach), dim=-1)
-
-
-def flat_tilts(point: torch.Tensor, tx: torch.Tensor, rx: torch.Tensor) -> torch.Tensor:
-    """The tilts ``[n, 4]`` (tx_vx, tx_vy, rx_vx, rx_vy) pointing both ends at the calm-sea path point ``[n, 3]``."""
-    return torch.cat((unit_vector(point - tx)[:, :2], unit_vector(point - rx)[:, :2]), dim=-1)
 
 
 def base_tilts(

@@ -207,12 +207,12 @@ class Actuator:
             except ValueError as error:
                 raise ValueError(f"{name}_{error}") from None
 
-    @property
+    @functools.cached_property
     def gimbal(self) -> Axis:
         return Axis(self.gimbal_range, self.gimbal_rate, self.gimbal_acceleration, self.gimbal_natural_frequency,
                     self.gimbal_damping, self.gimbal_resolution)  # fmt: skip
 
-    @property
+    @functools.cached_property
     def mirror(self) -> Axis:
         return Axis(self.mirror_range, math.inf, math.inf, self.mirror_natural_frequency, self.mirror_damping,
                     self.mirror_resolution)  # fmt: skip
