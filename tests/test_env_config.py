@@ -27,6 +27,7 @@ from waterair.physics.channel import (
     SinglePathChannel,
     Transceiver,
 )
+from waterair.physics.motion import Motion
 from waterair.physics.sea import ElfouhailySea, JonswapSea
 
 NUMBER = r"[-+]?(?:\d+(?:\.\d*)?(?:e[-+]?\d+)?|π/2)"
@@ -52,6 +53,7 @@ GROUPS = {
     "optics": (Transceiver,),
     "beacon": (Beacon,),
     "actuator": (Actuator,),
+    "motion": (Motion,),
     "channel": (FullChannel, MonteCarloChannel, CountingChannel),
 }
 

@@ -531,11 +531,12 @@ def test_latest_run_is_the_newest_checkpoint(tmp_path):
 BEACON_KEYS = ("beacon", "beacon_noise_rad", "beacon_threshold")
 """The env keys of the drone's beacon (docs/model.md §4.9)."""
 LATER_KEYS = (*BEACON_KEYS, "divergence_range", "divergence_values", "residual_beams", "replica_actions",
-              "replica_sensing", *FIXED, "draws", "link_offset", "actuator", "actuated")  # fmt: skip
+              "replica_sensing", *FIXED, "draws", "link_offset", "actuator", "actuated", "motion")  # fmt: skip
 """The env keys that came after ``intensity`` and ``paper`` were trained: the beacon's (their sensors read none),
 each link's own divergence (they were trained at one, ``optics.divergence``), the transmitter's residual in
 beam widths, how each replica acts and senses, the operating point, where the draws come from, the ends'
-actuators and whether they act (after ``default`` too). Their defaults (null; no actuators) are how they were
+actuators and whether they act, and how the ends move (after ``default`` too). Their defaults (null; no actuators;
+still ends) are how they were
 trained, but for the draws': all three were trained on the generator's stream (``env.draws=stream``), keyed draws'
 default came after them."""
 

@@ -16,6 +16,7 @@ from waterair.envs.groups import PHYSICS
 from waterair.envs.keys import KEYS
 from waterair.physics.actuator import Actuator
 from waterair.physics.channel import CHANNELS, Beacon, LinkGeometry, Transceiver
+from waterair.physics.motion import Motion
 from waterair.physics.sea import SPECTRA
 from waterair.training.config import CONF_DIR
 from waterair.training.keys import TRAINING_KEYS
@@ -27,6 +28,7 @@ def env_keys() -> set[str]:
     keys |= {"sea.spectrum", "channel.name"}
     held = [("sea", kind) for kind in SPECTRA.values()] + [("channel", kind) for kind in CHANNELS.values()]
     held += [("geometry", LinkGeometry), ("optics", Transceiver), ("beacon", Beacon), ("actuator", Actuator)]
+    held += [("motion", Motion)]
     return keys | {f"{group}.{field.name}" for group, kind in held for field in dataclasses.fields(kind)} - {"sea.flat"}
 
 

@@ -29,6 +29,7 @@ from waterair.envs.keys import KEYS
 from waterair.envs.operating_point import FIXED
 from waterair.physics.actuator import Actuator
 from waterair.physics.channel import CHANNELS, Beacon, LinkGeometry, Transceiver
+from waterair.physics.motion import Motion
 from waterair.physics.sea import SPECTRA
 from waterair.training.config import CONF_DIR
 from waterair.training.keys import TRAINING_KEYS
@@ -39,11 +40,11 @@ TRAINING_REFERENCE = ROOT / "docs" / "reference" / "training.md"
 DECIDED = {"device": "${device}", "seed": "${seed}", "compile_kernel": "auto"}
 """The env keys the entry points fill in (their own ``device`` and ``seed``) or decide (``auto``: compile when the
 run's frames repay it) where the dataclass has a value for a config built by hand."""
-PRESETS = ("sea", "spectrum", "channel", "observation", "sensor", "actuator")
+PRESETS = ("sea", "spectrum", "channel", "observation", "sensor", "actuator", "motion")
 """The option groups under conf/env whose options the reference names where they set a key."""
-HAND_WRITTEN = ("sea", "observation", "sensor", "actuator")
+HAND_WRITTEN = ("sea", "observation", "sensor", "actuator", "motion")
 """The option groups written by hand, each option holding only the keys it changes."""
-PACKAGES = {"sea": "sea", "spectrum": "sea", "channel": "channel", "actuator": "actuator"}
+PACKAGES = {"sea": "sea", "spectrum": "sea", "channel": "channel", "actuator": "actuator", "motion": "motion"}
 """Where a group's keys sit in the env group (the others: at its top)."""
 WIDTH = 118
 SOURCE = "waterair/envs/config.py and the physics objects it holds"
@@ -147,7 +148,7 @@ def dataclass_default(key: str):
         return getattr(defaults, key)
     group, name = key.split(".")
     holders = {"sea": [defaults.sea, *(kind() for kind in SPECTRA.values())], "geometry": [LinkGeometry()],
-               "optics": [Transceiver()], "beacon": [Beacon()], "actuator": [Actuator()],
+               "optics": [Transceiver()], "beacon": [Beacon()], "actuator": [Actuator()], "motion": [Motion()],
                "channel": [defaults.channel, *(kind() for kind in CHANNELS.values())]}  # fmt: skip
     return next(as_mapping(each)[name] for each in holders[group] if name in as_mapping(each))
 

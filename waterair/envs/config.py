@@ -38,6 +38,7 @@ from waterair.envs.operating_point import LOW_OPEN, PER_LINK
 from waterair.physics.actuator import Actuator
 from waterair.physics.channel import CHANNELS, Beacon, Channel, ChannelModel, FullChannel, LinkGeometry, Transceiver
 from waterair.physics.channel import channel as build_channel
+from waterair.physics.motion import Motion
 from waterair.physics.sea import SeaState, sea_state
 
 ACTION_MODES = ("absolute", "delta", "residual")
@@ -77,6 +78,7 @@ class EnvConfig:
     optics: Transceiver = Transceiver()  # env.optics.*: the ends' optics (docs/model.md §4-§5)
     beacon: Beacon = Beacon()  # env.beacon.*: the drone's beacon and the transmitter's detector (docs/model.md §4.9)
     actuator: Actuator = Actuator()  # env.actuator.*; env/actuator=ideal|gimbal|fsm|gimbal_fsm (docs/model.md §11)
+    motion: Motion = Motion()  # env.motion.*; env/motion=static|hover|transit: how the ends move (docs/model.md §12)
     # env.channel.*; env/channel=full|single_path (the paper's)|montecarlo|counting (the last two: slow), §4
     channel: Channel = FullChannel()
     # dynamics and interface (docs/environment.md)
@@ -146,6 +148,7 @@ class EnvConfig:
         object.__setattr__(self, "optics", physics_group("optics", self.optics, Transceiver, Transceiver))
         object.__setattr__(self, "beacon", physics_group("beacon", self.beacon, Beacon, Beacon))
         object.__setattr__(self, "actuator", physics_group("actuator", self.actuator, Actuator, Actuator))
+        object.__setattr__(self, "motion", physics_group("motion", self.motion, Motion, Motion))
         object.__setattr__(self, "channel", physics_group("channel", self.channel, Channel, build_channel))
         check_int("env.num_envs", self.num_envs, 1, 2**24)
         if not isinstance(self.compile_kernel, bool):  # a truthy 'auto' would compile silently

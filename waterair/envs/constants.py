@@ -16,6 +16,7 @@ from waterair.envs.rewards import Reward
 from waterair.envs.sensors import Sensor
 from waterair.physics.actuator import Actuator
 from waterair.physics.channel import Beacon, ChannelModel, Transceiver
+from waterair.physics.motion import Motion
 from waterair.physics.optics import traced
 from waterair.physics.paths import FixedNewtonOptions
 
@@ -72,6 +73,8 @@ class StepConstants:
     replica_choice: tuple[int, ...] = ()
     actuator: Actuator | None = None
     """The ends' actuators (``env.actuator``); None: none, the command is the pointing."""
+    motion: Motion | None = None
+    """How the ends move (``env.motion``); None: they stand still (``static``)."""
 
     @classmethod
     def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward, channel: ChannelModel) -> StepConstants:
@@ -97,6 +100,7 @@ class StepConstants:
             replica_actions=tuple(distinct),
             replica_choice=tuple(distinct.index(a) for a in each) if distinct else (),
             actuator=config.actuator if config.actuator.moves and any(a.actuated for a in each) else None,
+            motion=config.motion if config.motion.moves else None,
         )
 
     def for_links(self, divergence: torch.Tensor, replica: torch.Tensor | None = None) -> StepConstants:

@@ -23,8 +23,19 @@ from waterair.core.hashing import key, mix, uniforms
 from waterair.envs.config import EnvConfig
 from waterair.envs.noise import stream_keys
 from waterair.envs.operating_point import PER_LINK
+from waterair.physics.motion import DRAWS_PER_STEP
+from waterair.physics.motion import trajectory as motion_trajectory
 
-ROLES = {"wind": 1, "wind_direction": 2, "jitter": 3, "phase": 4, "offset": 5, "offset_azimuth": 6, "divergence": 7}
+ROLES = {
+    "wind": 1,
+    "wind_direction": 2,
+    "jitter": 3,
+    "phase": 4,
+    "offset": 5,
+    "offset_azimuth": 6,
+    "divergence": 7,
+    "motion": 8,
+}
 """Each keyed draw's role, a part of its key: a link's draws for two roles are independent."""
 
 
@@ -115,3 +126,13 @@ def per_link(bounds, values, default, links: torch.Tensor, draws, role: str, log
     if values is not None:
         return torch.tensor(values, dtype=torch.float64)[links.cpu() % len(values)]
     return None if default is None else torch.full((count,), default, dtype=torch.float64)
+
+
+def trajectory(config: EnvConfig, links: torch.Tensor, draws) -> torch.Tensor:
+    """An episode of ``env.motion`` ``[m, max_steps + 1, 11]`` float64 for distinct ``links``
+    (:func:`waterair.physics.motion.trajectory`), from ``draws``' uniforms for its role, made standard normal."""
+    steps = config.max_steps + 1
+    uniform = draws.uniform("motion", 2 * DRAWS_PER_STEP * steps, links.numel())
+    radius, angle = torch.sqrt(-2.0 * torch.log(uniform[:, 0::2])), 2.0 * math.pi * uniform[:, 1::2]
+    normal = (radius * torch.cos(angle)).view(-1, steps, DRAWS_PER_STEP)
+    return motion_trajectory(config.motion, normal, config.dt)

@@ -5,15 +5,18 @@ A tilt vector's components (v_x, v_y) are the sines of each axis's angle from th
 commanded θ = asin(v) − θ_mount per axis and points at sin(θ_mount + its angle) after the step
 (:func:`waterair.physics.actuator.respond_terminal`: the closed-form response, sub-stepped only where a limit
 binds). The mount is the vertical but for the fixed mirror (``fsm``), whose mount looks along the link's calm-sea
-path. Without actuators (``ideal``) this module is not called: the command is the pointing.
+path. Without actuators (``ideal``) the command is the pointing. Where the ends move (``env.motion``), each end
+points in its own body: :func:`point` takes the command there through the end's inertial reading, and the
+actuators' result into the world through its true attitude (:mod:`waterair.envs.platforms`).
 """
 
 from __future__ import annotations
 
 import torch
 
+from waterair.envs import platforms
 from waterair.envs.constants import StepConstants
-from waterair.envs.state import StepState
+from waterair.envs.state import Placement, StepState
 from waterair.physics.actuator import Actuator, respond_terminal, terminal_angle
 from waterair.physics.optics import unit_vector
 
@@ -31,12 +34,46 @@ def mount_tilts(actuator: Actuator, flat_point, tx_position, rx_position) -> tor
     return torch.zeros(flat_point.shape[0], 4, dtype=flat_point.dtype, device=flat_point.device)
 
 
-def drive(c: StepConstants, state: StepState, command: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+def drive_to(c: StepConstants, state: StepState, command: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """The tilts ``[B, 4]`` the ends point at after a step commanded to the tilts ``command`` ``[B, 4]``, and the
     actuators' new drive state ``[B, 4, DRIVE_WIDTH]`` (``c.actuator`` is set)."""
     actuator = c.actuator
     assert actuator is not None  # the kernel calls this only where the ends have actuators
-    mount = torch.asin(mount_tilts(actuator, state.flat_point, state.tx_position, state.rx_position))
+    tx, rx, point = platforms.known_ends(c, state)
+    mount = torch.asin(mount_tilts(actuator, point, tx, rx))
     target = torch.asin(command.clamp(-1.0, 1.0)) - mount
     moved = respond_terminal(actuator, state.drive, target, c.dt)
     return torch.sin(mount + terminal_angle(moved)), moved
+
+
+def point(c: StepConstants, state: StepState, command: torch.Tensor, actuated, time, steps):
+    """Where the ends point after a step commanded to ``command`` ``[B, 4]``, and what moved them: the tilts as the
+    ends know them ``[B, 4]``, the actuators' new drive state, where the ends are at ``time`` ``[B]``, ``steps`` into
+    the episode, and their tilts in the world ``[B, 4]`` (the last two None where they stand still). Each end
+    points in its body, through its inertial reading (docs/model.md §12), then its actuators (§11); the rows of
+    ``actuated`` ``[B, 1]`` that are false (the kinematic references; None: none) point as commanded, in the world."""
+    placed: Placement | None = None
+    body, drive = command, state.drive
+    if c.motion is not None:
+        placed = platforms.place(c, state, time, steps)
+        tx_true, tx_read, rx_true, rx_read = platforms.body_rotations(placed.attitude)
+        body = platforms.rotate_tilts(command, tx_read, rx_read, inverse=True)
+    pointed = body
+    if c.actuator is not None:
+        pointed, drive = drive_to(c, state, body)
+        pointed = torch.cat((limit_tilt(pointed[:, :2], c.max_tilt), limit_tilt(pointed[:, 2:], c.max_tilt)), -1)
+    world = None
+    if placed is not None:
+        world = platforms.rotate_tilts(pointed, tx_true, rx_true)
+        # as the end knows it: back through its reading (without actuators, the command, exactly)
+        pointed = command if c.actuator is None else platforms.rotate_tilts(pointed, tx_read, rx_read)
+        world = world if actuated is None else torch.where(actuated, world, command)
+    if actuated is not None and (c.actuator is not None or placed is not None):
+        pointed = torch.where(actuated, pointed, command)
+    return pointed, drive, placed, world
+
+
+def limit_tilt(tilt: torch.Tensor, max_tilt: float) -> torch.Tensor:
+    """Scale tilt vectors ``[n, 2]`` down to |v| ≤ sin(max_tilt)."""
+    norm = torch.linalg.vector_norm(tilt, dim=-1, keepdim=True)
+    return tilt * (max_tilt / norm.clamp(min=max_tilt))

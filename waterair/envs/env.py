@@ -13,7 +13,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import EnvBase
 
 from waterair.core.devices import resolve_device
-from waterair.envs import draws, drives, kernel
+from waterair.envs import draws, drives, kernel, platforms
 from waterair.envs.config import EnvConfig
 from waterair.envs.constants import StepConstants
 from waterair.envs.frames import FrameStack
@@ -262,7 +262,8 @@ class WaterAirEnv(EnvBase):
         prepared = self.channel.prepare(tx, rx, self.surface.unresolved)
         config = self.config
         latency = self.sensor.longest_latency
-        self.state = StepState.zeros(self.surface.harmonics, prepared, config.history_length, latency)
+        steps = config.max_steps + 1 if config.motion.moves else 1  # an episode's trajectory, where the ends move
+        self.state = StepState.zeros(self.surface.harmonics, prepared, config.history_length, latency, steps)
         self.measurement = Measurement(
             gain=zeros(),
             gain_upper_bound=zeros(),
@@ -309,7 +310,12 @@ class WaterAirEnv(EnvBase):
         prepared = constants.channel.prepare(tx, rx, self.surface.unresolved[rows])
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)
         seas = self.surface[rows]
-        at_rest = StepState.zeros(seas.harmonics, prepared, config.history_length, self.sensor.longest_latency)
+        at_rest = StepState.zeros(seas.harmonics, prepared, config.history_length, self.sensor.longest_latency,
+                                  self.state.trajectory.shape[1])  # fmt: skip
+        world = None
+        if config.motion.moves:  # the episode's motion, and the ends where it has them at t = 0
+            at_rest, world = self._moving(at_rest, (distinct, copy, source), tx, rx)
+            tx, rx, flat = at_rest.tx_position, at_rest.rx_position, at_rest.flat_point
         links = replace(
             at_rest,
             tx_position=tx,
@@ -333,10 +339,28 @@ class WaterAirEnv(EnvBase):
             compiled=config.compile_kernel,
         )
         noise = self.sensor.draw(self._noise_keys[rows.cpu()], dtype, self.device)
-        started, measurement = kernel.start(constants, links, path, noise, self.stepper.generator)
+        started, measurement = kernel.start(constants, links, path, noise, self.stepper.generator, world)
         self.state.write_rows(rows, started)
         for mine, value in zip(self.measurement, measurement, strict=True):
             mine[rows] = value
+
+    def _moving(self, links: StepState, drawn: tuple, tx: torch.Tensor, rx: torch.Tensor):
+        """``links`` at rest with their home at ``tx``, ``rx``, an episode's motion drawn (``drawn``: the distinct
+        links, where each row is among them, their draws) and the ends placed where it has them at t = 0; and the
+        tilts ``[n, 4]`` their upright ends point at in the world (their attitude)."""
+        distinct, copy, source = drawn
+        motion = self.config.motion
+        path = draws.trajectory(self.config, distinct, source)[copy.cpu()].to(self.device, tx.dtype)
+        velocity = motion.velocity(tx.dtype).to(self.device).expand_as(tx)
+        home = torch.stack((tx, rx, velocity), dim=1)
+        clock = (links.time, links.steps, self.config.episode_seconds)
+        at = platforms.locate(motion, links.sea, home, path, clock, None, self.optics.indices)
+        tx_true, tx_read, rx_true, rx_read = platforms.body_rotations(at.attitude)
+        world = platforms.rotate_tilts(platforms.rotate_tilts(links.command, tx_read, rx_read, inverse=True),
+                                       tx_true, rx_true)  # fmt: skip
+        links = replace(links, home=home, trajectory=path, known=at.known, tx_position=at.tx_position,
+                        rx_position=at.rx_position, flat_point=at.flat_point)  # fmt: skip
+        return links, world
 
     def _draws(self, distinct: torch.Tensor) -> draws.StreamDraws | draws.KeyedDraws:
         """Where the reset of the ``distinct`` links draws from (``env.draws``); keyed draws count each link's
@@ -356,11 +380,12 @@ class WaterAirEnv(EnvBase):
             observation = self._stack.push(observation) if reset is None else self._stack.reset(reset, observation)
         state = self.state
         out = {key: value.clone() for key, value in self.measurement._asdict().items()}
+        tx, rx, flat = platforms.known_ends(self.constants, state)  # what the controllers know of where they are
         out.update(
             observation=observation,
-            tx_position=state.tx_position.clone(),
-            rx_position=state.rx_position.clone(),
-            flat_point=state.flat_point.clone(),
+            tx_position=tx.clone(),
+            rx_position=rx.clone(),
+            flat_point=flat.clone(),
             divergence=state.divergence.clone(),
             tilt=self.tilt,
             pointed=self.pointed,

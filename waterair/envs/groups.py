@@ -1,5 +1,6 @@
 """The env's groups of physics keys: each a physics object (the sea, the geometry, the optics, the beacon, the
-actuators, the channel), built from a mapping of its keys, and the keys of earlier releases that now live in them.
+actuators, the ends' motion, the channel), built from a mapping of its keys, and the keys of earlier releases that
+now live in them.
 
 :class:`~waterair.envs.config.EnvConfig` holds the objects; :func:`physics_group` builds one from what a
 configuration gives (an error names ``env.<group>.<key>``), :func:`as_mapping` turns one back into its keys.
@@ -18,7 +19,7 @@ DEFAULT_SPECTRUM = "elfouhaily"
 SHARED_SEA_KEYS = ("wind", "fetch", "wind_direction_deg", "amplitude")
 """The conditions every sea describes: what a sea keeps when a change names another sea (which brings its own
 discretisation, ``n_dir`` included)."""
-PHYSICS = ("sea", "geometry", "optics", "beacon", "actuator", "channel")
+PHYSICS = ("sea", "geometry", "optics", "beacon", "actuator", "motion", "channel")
 """The env's physics groups: each a physics object, built from a mapping of its keys."""
 SEA_KEYS = ("spectrum", *sorted({field.name for kind in SPECTRA.values() for field in dataclasses.fields(kind)}))
 """The keys of every sea, and its name."""

@@ -23,10 +23,10 @@ from typing import NamedTuple
 
 import torch
 
-from waterair.envs import drives
+from waterair.envs import drives, platforms
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
 from waterair.envs.constants import Actions, StepConstants
-from waterair.envs.drives import flat_tilts
+from waterair.envs.drives import flat_tilts, limit_tilt
 from waterair.envs.packets import deliver, pack
 from waterair.envs.sensors import (
     SensorNoise,
@@ -36,7 +36,7 @@ from waterair.envs.sensors import (
     read_parked,
     spot_position,
 )
-from waterair.envs.state import Measurement, Moved, Outputs, Packet, Readings, StepResult, StepState, Tilts
+from waterair.envs.state import Measurement, Moved, Outputs, Packet, Readings, StepResult, StepState
 from waterair.physics.channel import LightSamples, LinkEnds, pointing, read_beacon
 from waterair.physics.optics import per_link, unit_vector
 from waterair.physics.paths import FixedNewtonOptions, Iterate, PathSolution, finish_path, near_calm_point
@@ -77,22 +77,32 @@ def _advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
             actuated = torch.tensor([a.actuated for a in c.replica_actions], device=action.device)[way]
     else:
         tx, rx = aimed_tilts(c, c.actions, state, action)
+        if not c.actions.actuated:
+            actuated = torch.zeros_like(action[:, :1], dtype=torch.bool)
     tx, rx = limit_tilt(tx, c.max_tilt), limit_tilt(rx, c.max_tilt)
     command, drive = torch.cat((tx, rx), dim=-1), state.drive
-    if c.actuator is not None:  # the actuators' response to the command (docs/model.md §11)
-        pointed, drive = drives.drive(c, state, command)
-        pointed = torch.cat((limit_tilt(pointed[:, :2], c.max_tilt), limit_tilt(pointed[:, 2:], c.max_tilt)), -1)
-        pointed = pointed if actuated is None else torch.where(actuated, pointed, command)
-        tx, rx = pointed[:, :2], pointed[:, 2:]
+    time, steps = state.time + c.dt, state.steps + 1
+    pointed, drive, placed, world = drives.point(c, state, command, actuated, time, steps)
     return Moved(
-        tx_tilt=tx,
-        rx_tilt=rx,
+        tx_tilt=pointed[:, :2],
+        rx_tilt=pointed[:, 2:],
         action_history=torch.cat((action.unsqueeze(1), state.action_history[:, :-1]), dim=1),
-        time=state.time + c.dt,
-        steps=state.steps + 1,
+        time=time,
+        steps=steps,
         command=command,
         drive=drive,
+        placed=placed,
+        world=world,
     )
+
+
+def placed(state: StepState, moved: Moved) -> StepState:
+    """``state`` with its ends where they are after ``moved`` (as it is where they stand still)."""
+    if moved.placed is None:
+        return state
+    at = moved.placed
+    return replace(state, tx_position=at.tx_position, rx_position=at.rx_position, flat_point=at.flat_point,
+                   known=at.known)  # fmt: skip
 
 
 def aimed_tilts(c: StepConstants, actions: Actions, state: StepState, action: torch.Tensor):
@@ -140,15 +150,17 @@ def base_tilts(
 
 
 def flat_snell_base(c: StepConstants, state: StepState, delivered: Readings) -> torch.Tensor:
-    """``flat_snell``: both ends at the calm-sea path point."""
-    return flat_tilts(state.flat_point, state.tx_position, state.rx_position)
+    """``flat_snell``: both ends at the calm-sea path point (as they know it)."""
+    tx, rx, point = platforms.known_ends(c, state)
+    return flat_tilts(point, tx, rx)
 
 
 def beacon_tracker_base(c: StepConstants, state: StepState, delivered: Readings) -> torch.Tensor:
     """``beacon_tracker``: each end along its own reading, the beacon's at the transmitter, the spot's at the
     receiver (flat-sea Snell where it has none)."""
     assert c.beacon is not None  # EnvConfig.senses_beacon: a beacon base reads the beacon
-    flat = unit_vector(state.flat_point - state.tx_position), unit_vector(state.flat_point - state.rx_position)
+    tx, rx, point = platforms.known_ends(c, state)
+    flat = unit_vector(point - tx), unit_vector(point - rx)
     tx_dir, rx_dir = beacon_pointing(
         (pointing(state.tx_tilt, up=True), delivered.beacon, delivered.beacon_valid[:, 0] > 0.5),
         (delivered.rx_pointing, delivered.spot, delivered.spot_valid[:, 0] > 0.5),
@@ -162,7 +174,7 @@ def beacon_tracker_base(c: StepConstants, state: StepState, delivered: Readings)
 def aoa_tracker_base(c: StepConstants, state: StepState, delivered: Readings) -> torch.Tensor:
     """``aoa_tracker``: the quadrant detector's back-projection of the delivered packet (flat-sea Snell where it
     has no reading, or only the one read with the gimbals parked at the reset)."""
-    point, tx, rx = state.flat_point, state.tx_position, state.rx_position
+    tx, rx, point = platforms.known_ends(c, state)
     flat = unit_vector(point - tx), unit_vector(point - rx)
     seen = (delivered.spot_valid[:, 0] > 0.5) & ~read_parked(state.steps, c.sensor.latency_steps)
     tx_dir, rx_dir = back_projection(delivered.rx_pointing, delivered.spot, seen, tx, rx, flat, c.optics.half_fov)
@@ -174,12 +186,6 @@ ACTION_MODES = {"absolute": absolute_tilts, "delta": delta_tilts, "residual": re
 RESIDUAL_BASES = {"flat_snell": flat_snell_base, "aoa_tracker": aoa_tracker_base, "beacon_tracker": beacon_tracker_base}
 """What residual actions correct, by ``env.residual_base``: each ``f(c, state, delivered readings)`` → the tilts
 ``[B, 4]``."""
-
-
-def limit_tilt(tilt: torch.Tensor, max_tilt: float) -> torch.Tensor:
-    """Scale tilt vectors ``[n, 2]`` down to |v| ≤ sin(max_tilt)."""
-    norm = torch.linalg.vector_norm(tilt, dim=-1, keepdim=True)
-    return tilt * (max_tilt / norm.clamp(min=max_tilt))
 
 
 def predicted_point(state: StepState) -> torch.Tensor:
@@ -214,7 +220,7 @@ def channel_light(
     """The channel's light for the links of ``state`` (their seas, ends and the channel's per-episode
     constants) through the tracked ``path``, at the time and transmitter pointing of the gimbals ``moved``;
     ``copies`` as :func:`record`'s (default ``c.replicas``)."""
-    tx_dir = pointing(moved.tx_tilt, up=True)
+    tx_dir = pointing(moved.world_tilts.tx_tilt, up=True)
     ends = LinkEnds(state.tx_position, state.rx_position, state.flat_point, tx_dir)
     copies = c.replicas if copies is None else copies
     return c.channel.light(state.sea, path, ends, moved.time, state.prepared, generator, copies=copies)
@@ -222,7 +228,7 @@ def channel_light(
 
 def record(
     c: StepConstants,
-    tilts: Tilts,
+    moved: Moved,
     path: PathSolution,
     light: LightSamples,
     reference_gain,
@@ -234,9 +240,11 @@ def record(
     """What a solved path and its ``light`` give: the true measurement, the sensor readings and the next warm
     start (:class:`Record`). An invalid path stores the calm-sea point, so that the next solve does not
     start from a lost one. ``copies``: the links are that many copies of the first B / copies (a step's
-    ``c.replicas``; a reset of some links, 1).
+    ``c.replicas``; a reset of some links, 1). The light is received along the ends' pointing in the world, and
+    each end reads its pointing as its controller knows it (``moved``'s).
     """
-    tx_dir, rx_dir = pointing(tilts.tx_tilt, up=True), pointing(tilts.rx_tilt, up=False)
+    world = moved.world_tilts
+    tx_dir, rx_dir = pointing(world.tx_tilt, up=True), pointing(world.rx_tilt, up=False)
     received = c.channel.receive(light, tx_dir, rx_dir, copies=copies)
     intensity = received.gain / reference_gain
     measured = c.sensor.intensity(intensity, noise)
@@ -244,6 +252,8 @@ def record(
     spot, spot_valid = c.sensor.spot(seen, received.lit, measured, noise)
     feature = intensity_feature(measured)
     beacon, beacon_valid = read_beacon_packet(c, light, tx_dir, rx_dir, reference_gain, noise)
+    if moved.world is not None:
+        tx_dir, rx_dir = pointing(moved.tx_tilt, up=True), pointing(moved.rx_tilt, up=False)
     readings = Readings(
         tx_pointing=tx_dir,
         rx_pointing=rx_dir,
@@ -290,12 +300,13 @@ def conclude(
 
 def _conclude(c: StepConstants, state: StepState, moved: Moved, solution: Iterate, noise, light) -> StepResult:
     """:func:`conclude` with ``c`` already for the links."""
+    state = placed(state, moved)
     tx, rx = state.tx_position, state.rx_position
     path = finish_path(solution, tx, rx, c.optics.indices)
     if light is None:
         light = channel_light(c, state, path, moved)
     measurement, readings, stored, tracked, feature = record(
-        c, moved.tilts, path, light, state.reference_gain, state.flat_point, noise, copies=c.replicas
+        c, moved, path, light, state.reference_gain, state.flat_point, noise, copies=c.replicas
     )
     history = torch.cat((state.last_feature.unsqueeze(-1), state.history[:, :-1]), dim=-1)
     packets = torch.cat((pack(readings, history).unsqueeze(1), state.packets[:, :-1]), dim=1)
@@ -321,18 +332,19 @@ def _conclude(c: StepConstants, state: StepState, moved: Moved, solution: Iterat
 
 
 def start(
-    c: StepConstants, links: StepState, path: PathSolution, noise: SensorNoise | None, generator=None
+    c: StepConstants, links: StepState, path: PathSolution, noise: SensorNoise | None, generator=None, world=None
 ) -> tuple[StepState, Measurement]:
     """Links at their reset: the state they start from and its measurement, recorded as a step records
     (:func:`record`). ``links`` is their state with its seas, ends, ω_D, calm-sea point, G_0 and the channel's
     constants set and the rest zeros (at rest: t = 0, both ends upright, no history); ``path`` their cold path
     solve at t = 0. The first packet fills every slot in flight (a reset has no older one); ``generator``: a
-    channel's that draws (the Monte Carlo tracer)."""
+    channel's that draws (the Monte Carlo tracer); ``world``: the tilts ``[n, 4]`` the ends point at in the world,
+    where they move (their attitude)."""
     resting = Moved(links.tx_tilt, links.rx_tilt, links.action_history, links.time, links.steps, links.command,
-                    links.drive)  # fmt: skip
+                    links.drive, world=world)  # fmt: skip
     light = channel_light(c, links, path, resting, generator, copies=1)
     measurement, readings, stored, _, feature = record(
-        c, resting.tilts, path, light, links.reference_gain, links.flat_point, noise
+        c, resting, path, light, links.reference_gain, links.flat_point, noise
     )
     packets = pack(readings, links.history).unsqueeze(1).expand_as(links.packets)
     return replace(links, point=stored, previous_point=stored, last_feature=feature, packets=packets), measurement
@@ -347,7 +359,7 @@ def step(c: StepConstants, state: StepState, action: torch.Tensor, noise: Sensor
     """
     links = c.for_links(state.divergence)  # once for the step's two stages
     moved = _advance(links, state, action)
-    return _conclude(links, state, moved, solve(c, state, moved.time), noise, None)
+    return _conclude(links, state, moved, solve(c, placed(state, moved), moved.time), noise, None)
 
 
 def finish(
@@ -359,7 +371,7 @@ def finish(
     For small batches, where a dense pass costs less than gathering the unconverged links; links
     that had converged take no step.
     """
-    more = solve(c, state, moved.time, solution.xy, options)
+    more = solve(c, placed(state, moved), moved.time, solution.xy, options)
     return conclude(c, state, moved, more._replace(iterations=solution.iterations + more.iterations), noise)
 
 
@@ -380,7 +392,8 @@ def observe(c: StepConstants, state: StepState, delivered: Packet | None = None)
     """
     delivered = deliver(state.packets, c.sensor.latency_steps) if delivered is None else delivered
     time = (state.time / c.episode_seconds).unsqueeze(-1)
-    geometry = (state.rx_position - state.tx_position)[:, :2] / c.vertical_distance
+    tx, rx, _ = platforms.known_ends(c, state)
+    geometry = (rx - tx)[:, :2] / c.vertical_distance
     narrow, wide = DIVERGENCE_SPAN
     divergence = torch.log(state.divergence**2 / (narrow * wide)) / math.log(wide / narrow)
     divergence = divergence.to(time.dtype).unsqueeze(-1)

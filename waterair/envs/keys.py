@@ -70,6 +70,33 @@ KEYS: dict[str, tuple[str, str]] = {
     "actuator.mirror_natural_frequency": ("Hz", "(0, 1e5]"),
     "actuator.mirror_damping": ("–", "(0, 10]"),
     "actuator.mirror_resolution": ("rad", "[0, 0.01]"),
+    "motion.kind": (
+        "–",
+        "static (both ends still), hover (the drone holding station, the vehicle in the sea's orbital motion), "
+        "transit (hover, the drone crossing the link); docs/model.md §12",
+    ),
+    "motion.drift_horizontal": (
+        "m",
+        "[0, 100]: σ of the drone's position hold per horizontal axis (DJI's ±1.5 m GNSS hover accuracy read as 3σ; "
+        "its statistic is not stated)",
+    ),
+    "motion.drift_vertical": ("m", "[0, 100]: σ of its height hold (DJI's ±0.5 m as 2.5σ)"),
+    "motion.drift_period": ("s", "(0, 1e4]: the hold loop's natural period (assumed: no flight log found)"),
+    "motion.drift_damping": ("–", "(0, 10]: its ζ"),
+    "motion.drone_attitude": ("rad", "[0, 0.5]: σ of the drone's roll and pitch (1°, assumed)"),
+    "motion.drone_attitude_period": ("s", "(0, 1e4]"),
+    "motion.vehicle_response": ("–", "[0, 1]: of the water's orbital motion the vehicle takes (0: holds station)"),
+    "motion.vehicle_attitude": ("rad", "[0, 0.5]: σ of the vehicle's roll and pitch (2°, assumed)"),
+    "motion.vehicle_attitude_period": ("s", "(0, 1e4]"),
+    "motion.attitude_damping": ("–", "(0, 10]: ζ of both ends' attitude"),
+    "motion.imu_error": ("rad", "[0, 0.5]: σ of each end's inertial roll and pitch error (Xsens MTi-300: 0.2° RMS)"),
+    "motion.imu_time": ("s", "(0, 1e4]: that error's time constant (QRSim's, a simulator's setting)"),
+    "motion.transit_speed": (
+        "m/s",
+        "[0, 50]: `transit`: the drone's speed, crossing home at mid-episode (1.5: the tank experiments' fastest "
+        "receiver)",
+    ),
+    "motion.transit_heading_deg": ("deg", "[-360, 360]: its heading from +x"),
     "channel.name": (
         "–",
         'chosen with `env/channel=full\\|single_path\\|montecarlo\\|counting` (docs/environment.md, "Channel"); '

@@ -17,8 +17,11 @@ import torch
 
 from waterair.envs.sensors import packet_sizes
 from waterair.physics.actuator import DRIVE_WIDTH
+from waterair.physics.motion import TRAJECTORY_COLUMNS
 from waterair.physics.paths import Iterate
 from waterair.physics.surface import Harmonics
+
+TRAJECTORY_WIDTH = len(TRAJECTORY_COLUMNS)
 
 
 class Tilts(NamedTuple):
@@ -28,11 +31,25 @@ class Tilts(NamedTuple):
     rx_tilt: torch.Tensor
 
 
+class Placement(NamedTuple):
+    """Where moving ends are at a step (:mod:`waterair.envs.platforms`): the true T, R and calm-sea point ``[B, 3]``
+    each, what the controllers know of them (``known`` ``[B, 3, 3]``: T, R and their calm-sea point), and each end's
+    true and inertially read attitude (``attitude`` ``[B, 8]``: tx roll, pitch, its reading's, then rx's)."""
+
+    tx_position: torch.Tensor
+    rx_position: torch.Tensor
+    flat_point: torch.Tensor
+    known: torch.Tensor
+    attitude: torch.Tensor
+
+
 class Moved(NamedTuple):
     """The ends, the action history and the clock after an action (:func:`waterair.envs.kernel.advance`): the
-    tilts pointed at ``[B, 2]``, the last actions ``[B, history_length, 4]``, newest first, the time (s) and the
-    steps since the reset (int64), ``[B]`` each, the tilts commanded ``[B, 4]`` and the actuators' drive state
-    ``[B, 4, DRIVE_WIDTH]`` (:class:`StepState`)."""
+    tilts pointed at ``[B, 2]`` (as the ends' controllers know them), the last actions ``[B, history_length, 4]``,
+    newest first, the time (s) and the steps since the reset (int64), ``[B]`` each, the tilts commanded ``[B, 4]``
+    and the actuators' drive state ``[B, 4, DRIVE_WIDTH]`` (:class:`StepState`); where the ends move
+    (``env.motion``), where they are (``placed``) and the tilts they point at in the world ``[B, 4]`` (``world``),
+    None on a still link, where the world's are the known ones."""
 
     tx_tilt: torch.Tensor
     rx_tilt: torch.Tensor
@@ -41,10 +58,17 @@ class Moved(NamedTuple):
     steps: torch.Tensor
     command: torch.Tensor
     drive: torch.Tensor
+    placed: Placement | None = None
+    world: torch.Tensor | None = None
 
     @property
     def tilts(self) -> Tilts:
         return Tilts(self.tx_tilt, self.rx_tilt)
+
+    @property
+    def world_tilts(self) -> Tilts:
+        """The tilts the ends point at in the world: the light's."""
+        return self.tilts if self.world is None else Tilts(self.world[:, :2], self.world[:, 2:])
 
 
 @dataclass(frozen=True)
@@ -72,6 +96,10 @@ class StepState:
         base_tilt: the residual base controller's tilts ``[B, 4]`` for the next action, from this state (computed
             once, where a step concludes or the environment resets, and read by the next step's actions).
         prepared: the channel's per-episode constants, a named tuple (``ChannelModel.Prepared``) of ``[B, ...]``.
+        home, known, trajectory: where the ends move (``env.motion``; zeros otherwise): each link's T and R as its
+            reset drew them and the drone's transit velocity ``[B, 3, 3]``; T, R and their calm-sea point as the
+            controllers know them now ``[B, 3, 3]``; the episode's drift and attitudes ``[B, T, 11]``
+            (:mod:`waterair.envs.platforms`). ``tx_position``, ``rx_position`` and ``flat_point`` are the true ones.
     """
 
     sea: Harmonics
@@ -94,12 +122,17 @@ class StepState:
     packets: torch.Tensor
     base_tilt: torch.Tensor
     prepared: tuple
+    home: torch.Tensor
+    known: torch.Tensor
+    trajectory: torch.Tensor
 
     @classmethod
-    def zeros(cls, sea: Harmonics, prepared: tuple, history_length: int, latency_steps: int) -> StepState:
+    def zeros(
+        cls, sea: Harmonics, prepared: tuple, history_length: int, latency_steps: int, trajectory_steps: int = 1
+    ) -> StepState:
         """A state of zeros for the links of ``sea`` (their number, device and float dtype), with room for
-        ``history_length`` features and actions, ``latency_steps + 1`` packets in flight and the channel's
-        ``prepared`` constants (one link's worth of each is their shape)."""
+        ``history_length`` features and actions, ``latency_steps + 1`` packets in flight, the channel's
+        ``prepared`` constants (one link's worth of each is their shape) and ``trajectory_steps`` of motion."""
         batch, dtype, device = sea.omega.shape[0], sea.omega.dtype, sea.omega.device
 
         def zeros(*shape: int, kind: torch.dtype = dtype) -> torch.Tensor:
@@ -126,10 +159,18 @@ class StepState:
             packets=zeros(latency_steps + 1, sum(packet_sizes(history_length))),
             base_tilt=zeros(4),
             prepared=type(prepared)(*(zeros(*value.shape[1:]) for value in prepared)),
+            home=zeros(3, 3),
+            known=zeros(3, 3),
+            trajectory=zeros(trajectory_steps, TRAJECTORY_WIDTH),
         )
 
     def after(self, moved: Moved, **changes: torch.Tensor) -> StepState:
-        """This state with the gimbals and the clock ``moved`` and the entries ``changes`` replaced."""
+        """This state with the gimbals and the clock ``moved`` (and the ends, where they move) and the entries
+        ``changes`` replaced."""
+        if moved.placed is not None:
+            placed = moved.placed
+            changes = dict(tx_position=placed.tx_position, rx_position=placed.rx_position,
+                           flat_point=placed.flat_point, known=placed.known, **changes)  # fmt: skip
         return replace(
             self,
             tx_tilt=moved.tx_tilt,

@@ -115,8 +115,9 @@ class Stepper:
             result = self._step(self.traced, state, action, noise)
         else:  # the same stages, the solve or the light eager
             moved = kernel.advance(self.constants, state, action)
-            solution = self._solve(surface, state, moved)
-            light = None if self._light is None else self._light(state, moved, solution)
+            at = kernel.placed(state, moved)  # the ends where they are at the step (where they move)
+            solution = self._solve(surface, at, moved)
+            light = None if self._light is None else self._light(at, moved, solution)
             result = self._conclude(self.traced, state, moved, solution, noise, light)
         finished = self.solver == "centroid" or not self.constants.channel.needs_exact_point
         if finished or bool(result.solution.converged.all()):  # the step's one host sync
@@ -159,10 +160,11 @@ class Stepper:
         adaptive solver.
         """
         c, moved = self.constants, result.moved
+        at = kernel.placed(state, moved)  # where the step's ends are, for the adaptive solve
         if self.compile_kernel and state.time.shape[0] <= DENSE_FINISH_BATCH:
             result = self._finish(self.traced, state, moved, result.solution, noise, self.finishing)
             if bool(result.solution.converged.all()):
                 return result
-        problem = PathProblem(surface, state.tx_position, state.rx_position, moved.time, c.optics.indices)
+        problem = PathProblem(surface, at.tx_position, at.rx_position, moved.time, c.optics.indices)
         solution = finish_unconverged(problem, result.solution, self.finishing, self.compile_kernel)
         return self._conclude(self.traced, state, moved, solution, noise)

@@ -21,6 +21,7 @@ from waterair.physics.paths.solution import (
     PathSolution,
     finish_path,
     flat_sea_point,
+    flat_sea_point_near,
     near_calm_point,
 )
 from waterair.physics.surface import WaveSurface
@@ -89,6 +90,7 @@ __all__ = [
     "SolverOptions",
     "finish_path",
     "flat_sea_point",
+    "flat_sea_point_near",
     "near_calm_point",
     "solve_path",
 ]

@@ -99,6 +99,26 @@ def flat_sea_point(tx: torch.Tensor, rx: torch.Tensor, n_water: float = N_WATER,
     return torch.cat((xy, torch.zeros_like(s).unsqueeze(-1)), dim=-1)
 
 
+def flat_sea_point_near(
+    tx: torch.Tensor, rx: torch.Tensor, near: torch.Tensor, n_water: float = N_WATER, n_air: float = N_AIR
+) -> torch.Tensor:
+    """:func:`flat_sea_point` for ends that have moved little since their calm-sea point was ``near`` ``[B, 3]``:
+    three Newton steps on the same monotone residual from ``near``'s distance along the new segment (quadratic
+    convergence: from a start a few centimetres off, exact to float rounding), clamped to the segment."""
+    horizontal = rx[:, :2] - tx[:, :2]
+    distance = torch.linalg.vector_norm(horizontal, dim=-1)
+    direction = horizontal / distance.clamp(min=torch.finfo(tx.dtype).tiny).unsqueeze(-1)
+    depth, height = (-tx[:, 2]).clamp(min=0), rx[:, 2].clamp(min=0)
+    s = ((near[:, :2] - tx[:, :2]) * direction).sum(-1).clamp(min=0.0).minimum(distance)
+    for _ in range(3):
+        water, air = torch.hypot(s, depth), torch.hypot(distance - s, height)
+        residual = n_water * s / water - n_air * (distance - s) / air
+        slope = n_water * depth**2 / water**3 + n_air * height**2 / air**3
+        s = (s - residual / slope.clamp(min=torch.finfo(tx.dtype).tiny)).clamp(min=0.0).minimum(distance)
+    xy = tx[:, :2] + s.unsqueeze(-1) * direction
+    return torch.cat((xy, torch.zeros_like(s).unsqueeze(-1)), dim=-1)
+
+
 def finish_path(stop: Iterate, tx, rx, indices: RefractiveIndices) -> PathSolution:
     """Directions, angles and lengths of the path between ``tx`` and ``rx`` ``[B, 3]`` through the point where the
     iterations ``stop``ped (its point, slope, convergence and iterations); flags invalid paths."""

@@ -1,0 +1,90 @@
+"""The ends' own motion in the step (``env.motion``): where the vehicle and the drone are at a step, what their
+controllers know of it, and how each end's attitude turns a pointing in its own frame into the world's
+(docs/model.md §12).
+
+A link keeps its *home* (the positions its reset drew, and the drone's transit velocity) and an episode's
+*trajectory* (:func:`waterair.physics.motion.trajectory`, drawn at the reset from the link's keyed draws): the
+drone's drift and each end's attitude and inertial reading, per step. At a step's time the vehicle is at home
+plus the water's orbital motion there (times its response), and the drone on its path (home, plus its transit
+about the episode's middle) plus its drift. The controllers know the path, not the drift nor the orbit: the
+``known`` ends (and their calm-sea point) are what :func:`known_ends` gives every controller, the true ones
+what the light follows.
+
+Each end points in its body frame: a command in the known world frame goes through the attitude its inertial
+sensor reads (Rᵀ_imu), the actuator moves in the body, and the body's true attitude carries the result into the
+world (R_true). With a perfect inertial sensor and ideal actuators the two cancel. Without motion
+(``static``) none of this runs: the step is the earlier one bit for bit.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from waterair.envs.constants import StepConstants
+from waterair.envs.state import Placement, StepState
+from waterair.physics.channel import pointing
+from waterair.physics.motion import Motion, orbital_motion, rotation
+from waterair.physics.optics import RefractiveIndices
+from waterair.physics.paths import flat_sea_point, flat_sea_point_near
+from waterair.physics.surface import Harmonics
+
+
+def known_ends(c: StepConstants, state: StepState) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """T, R and the calm-sea point ``[B, 3]`` each as the controllers know them: the true ones on a still link."""
+    if c.motion is None:
+        return state.tx_position, state.rx_position, state.flat_point
+    return state.known[:, 0], state.known[:, 1], state.known[:, 2]
+
+
+def place(c: StepConstants, state: StepState, time: torch.Tensor, steps: torch.Tensor) -> Placement:
+    """The ends of ``state``'s links at ``time`` ``[B]`` (s), its ``steps`` ``[B]`` into the episode; their calm-sea
+    points from the last ones (they move little in a step)."""
+    assert c.motion is not None  # the kernel places the ends only where they move
+    near = (state.flat_point, state.known[:, 2])
+    return locate(c.motion, state.sea, state.home, state.trajectory, (time, steps, c.episode_seconds), near,
+                  c.optics.indices)  # fmt: skip
+
+
+def locate(
+    motion: Motion,
+    sea: Harmonics,
+    home: torch.Tensor,
+    trajectory: torch.Tensor,
+    clock: tuple[torch.Tensor, torch.Tensor, float],
+    near: tuple[torch.Tensor, torch.Tensor] | None,
+    indices: RefractiveIndices,
+) -> Placement:
+    """:func:`place` from the parts: the links' ``home`` ``[B, 3, 3]`` (T, R, the transit velocity), their
+    ``trajectory`` ``[B, T, 11]``, ``clock`` (time, steps, the episode's length), the last calm-sea points ``near``
+    (true, known; None: solved afresh, as at a reset)."""
+    time, steps, episode = clock
+    tx_home, rx_home, velocity = home.unbind(1)
+    row = trajectory.gather(1, steps.clamp(max=trajectory.shape[1] - 1).view(-1, 1, 1).expand(-1, 1, 11))[:, 0]
+    known_rx = rx_home + velocity * (time - 0.5 * episode).unsqueeze(-1).to(home.dtype)
+    tx = tx_home + orbital_motion(sea, tx_home, time, motion.vehicle_response).displacement
+    rx = known_rx + row[:, :3]
+    if near is None:
+        flat, known_flat = flat_sea_point(tx, rx, *indices), flat_sea_point(tx_home, known_rx, *indices)
+    else:
+        flat, known_flat = (
+            flat_sea_point_near(tx, rx, near[0], *indices),
+            flat_sea_point_near(tx_home, known_rx, near[1], *indices),
+        )
+    return Placement(tx, rx, flat, torch.stack((tx_home, known_rx, known_flat), dim=1), row[:, 3:])
+
+
+def body_rotations(attitude: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The body-to-world rotations ``[B, 3, 3]`` of the transmitter's true and read attitudes, then the
+    receiver's, from a placement's ``attitude`` ``[B, 8]`` (roll, pitch; no yaw)."""
+    yaw = torch.zeros_like(attitude[:, 0])
+    return tuple(rotation(attitude[:, 2 * i], attitude[:, 2 * i + 1], yaw) for i in range(4))  # type: ignore[return-value]
+
+
+def rotate_tilts(tilts: torch.Tensor, tx_rotation: torch.Tensor, rx_rotation: torch.Tensor, inverse: bool = False):
+    """Tilts ``[B, 4]`` (tx's, then rx's) of directions turned by each end's rotation ``[B, 3, 3]`` (its transpose
+    with ``inverse``): the transmitter's pointing up, the receiver's down."""
+    turned = []
+    for tilt, matrix, up in ((tilts[:, :2], tx_rotation, True), (tilts[:, 2:], rx_rotation, False)):
+        matrix = matrix.transpose(-1, -2) if inverse else matrix
+        turned.append(torch.einsum("bij,bj->bi", matrix, pointing(tilt, up=up))[:, :2])
+    return torch.cat(turned, dim=-1)
