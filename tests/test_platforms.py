@@ -12,7 +12,16 @@ import torch
 from waterair.envs.config import EnvConfig
 from waterair.envs.drives import flat_tilts
 from waterair.envs.env import WaterAirEnv
-from waterair.physics.motion import DRAWS_PER_STEP, Motion, Oscillator, orbital_motion, rotation, trajectory
+from waterair.physics.motion import (
+    MOTION_WIDTH,
+    Motion,
+    Oscillator,
+    attitudes,
+    motion_start,
+    motion_step,
+    orbital_motion,
+    rotation,
+)
 from waterair.physics.paths import flat_sea_point, flat_sea_point_near
 
 F64 = torch.float64
@@ -39,10 +48,21 @@ def test_an_oscillator_step_keeps_its_stationary_covariance_and_correlates_as_th
     assert phi[0, 0].item() == pytest.approx(_correlation(dt, 3.0, 0.4), rel=1e-10, abs=1e-13)
 
 
-def test_a_trajectory_has_each_process_s_standard_deviation_and_its_inertial_reading_the_error_s():
+def _path(motion: Motion, links: int, steps: int) -> torch.Tensor:
+    """``steps`` of ``motion`` for ``links`` from a stationary start: each end's attitude and reading ``[m, T, 8]``
+    after the drift ``[m, T, 3]``, as one ``[m, T, 11]``."""
+    generator = torch.Generator().manual_seed(1)
+    draw = lambda: torch.randn(links, MOTION_WIDTH, generator=generator, dtype=F64)  # noqa: E731
+    state, rows = motion_start(motion, draw()), []
+    for _ in range(steps):
+        rows.append(torch.cat((state[:, :3], attitudes(state)), dim=-1))
+        state = motion_step(motion, state, draw(), 0.05)
+    return torch.stack(rows, dim=1)
+
+
+def test_a_motion_has_each_process_s_standard_deviation_and_its_inertial_reading_the_error_s():
     motion = Motion(kind="hover")
-    path = trajectory(motion, torch.randn(4000, 120, DRAWS_PER_STEP, generator=torch.Generator().manual_seed(1),
-                                          dtype=F64), 0.05)  # fmt: skip
+    path = _path(motion, 4000, 120)
     spread = path.std(dim=(0, 1))
     sigmas = [motion.drift_horizontal] * 2 + [motion.drift_vertical] + [motion.vehicle_attitude] * 2
     assert spread[:3].tolist() == pytest.approx(sigmas[:3], rel=0.03)
@@ -91,7 +111,7 @@ def test_the_vehicle_moves_with_the_water_s_orbital_motion_times_its_response_an
     path = home[:, 1] + velocity * (time - 0.5 * env.config.max_steps * env.config.dt).unsqueeze(-1)
     assert torch.allclose(td["rx_position"], path, rtol=0, atol=1e-12)  # what the controllers know: the path
     assert torch.allclose(td["tx_position"], home[:, 0], rtol=0, atol=1e-12)  # and the vehicle's station
-    drift = state.trajectory[:, 7, :3]
+    drift = state.motion[:, :3]
     assert torch.allclose(state.rx_position, path + drift, rtol=0, atol=1e-12)
     assert drift.norm(dim=-1).min() > 1e-3
     assert torch.allclose(td["flat_point"], flat_sea_point(home[:, 0], path), rtol=0, atol=1e-9)
@@ -100,11 +120,14 @@ def test_the_vehicle_moves_with_the_water_s_orbital_motion_times_its_response_an
 def test_a_link_s_motion_is_keyed_to_it_and_its_replicas_share_it():
     config = dict(SMALL, num_envs=8, replicas=2, motion={"kind": "hover"})
     env = WaterAirEnv(EnvConfig(**config))
-    env.reset()
-    assert torch.equal(env.state.trajectory[:4], env.state.trajectory[4:])
     alone = WaterAirEnv(EnvConfig(**dict(config, num_envs=2, replicas=1, link_offset=1)))
-    alone.reset()
-    assert torch.equal(alone.state.trajectory[0], env.state.trajectory[1])
+    td, single = env.reset(), alone.reset()
+    for _ in range(4):
+        assert torch.equal(env.state.motion[:4], env.state.motion[4:])
+        assert torch.equal(alone.state.motion[0], env.state.motion[1])
+        assert env.state.motion[:4].unique(dim=0).shape[0] == 4  # and links differ
+        td = env.step(td.set("action", torch.zeros(8, 4, dtype=F64)))["next"]
+        single = alone.step(single.set("action", torch.zeros(2, 4, dtype=F64)))["next"]
 
 
 def _world_direction(tilt, attitude, read, up: bool) -> torch.Tensor:
@@ -125,9 +148,9 @@ def test_each_end_points_through_its_attitude_and_a_perfect_inertial_reading_tak
     command = torch.tensor([[0.1, -0.05, -0.08, 0.02]], dtype=F64).expand(4, 4)
     for _ in range(3):
         td = env.step(td.set("action", command / env.config.max_tilt))["next"]
-    row = env.state.trajectory[:, 3]
-    tx = _world_direction(command[:, :2], row[:, 3:5], row[:, 5:7], up=True)
-    rx = _world_direction(command[:, 2:], row[:, 7:9], row[:, 9:11], up=False)
+    row = attitudes(env.state.motion)
+    tx = _world_direction(command[:, :2], row[:, 0:2], row[:, 2:4], up=True)
+    rx = _world_direction(command[:, 2:], row[:, 4:6], row[:, 6:8], up=False)
     assert torch.equal(td["pointed"], td["tilt"])  # the ends know they point where they were told
     # the light leaves along the world's pointing: its misalignment from the path is the angle to the departure
     alpha_d = torch.acos((tx * td["departure"]).sum(-1).clamp(max=1.0))

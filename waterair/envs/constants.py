@@ -75,6 +75,8 @@ class StepConstants:
     """The ends' actuators (``env.actuator``); None: none, the command is the pointing."""
     motion: Motion | None = None
     """How the ends move (``env.motion``); None: they stand still (``static``)."""
+    motion_transitions: tuple = ()
+    """Its oscillators' step (:meth:`Motion.transitions`), as floats: computed here, outside the step's graph."""
 
     @classmethod
     def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward, channel: ChannelModel) -> StepConstants:
@@ -101,6 +103,7 @@ class StepConstants:
             replica_choice=tuple(distinct.index(a) for a in each) if distinct else (),
             actuator=config.actuator if config.actuator.moves and any(a.actuated for a in each) else None,
             motion=config.motion if config.motion.moves else None,
+            motion_transitions=config.motion.transitions(config.dt) if config.motion.moves else (),
         )
 
     def for_links(self, divergence: torch.Tensor, replica: torch.Tensor | None = None) -> StepConstants:

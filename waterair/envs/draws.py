@@ -21,10 +21,11 @@ import torch
 
 from waterair.core.hashing import key, mix, uniforms
 from waterair.envs.config import EnvConfig
-from waterair.envs.noise import stream_keys
+from waterair.envs.noise import draw_nonce, normals, stream_keys
 from waterair.envs.operating_point import PER_LINK
-from waterair.physics.motion import DRAWS_PER_STEP
-from waterair.physics.motion import trajectory as motion_trajectory
+from waterair.envs.sensors import SensorNoise
+from waterair.physics.motion import MOTION_WIDTH
+from waterair.physics.motion import motion_start as start_motion
 
 ROLES = {
     "wind": 1,
@@ -128,11 +129,20 @@ def per_link(bounds, values, default, links: torch.Tensor, draws, role: str, log
     return None if default is None else torch.full((count,), default, dtype=torch.float64)
 
 
-def trajectory(config: EnvConfig, links: torch.Tensor, draws) -> torch.Tensor:
-    """An episode of ``env.motion`` ``[m, max_steps + 1, 11]`` float64 for distinct ``links``
-    (:func:`waterair.physics.motion.trajectory`), from ``draws``' uniforms for its role, made standard normal."""
-    steps = config.max_steps + 1
-    uniform = draws.uniform("motion", 2 * DRAWS_PER_STEP * steps, links.numel())
+def motion_start(config: EnvConfig, links: torch.Tensor, draws) -> torch.Tensor:
+    """The stationary start ``[m, MOTION_WIDTH]`` float64 of ``env.motion`` for distinct ``links``
+    (:func:`waterair.physics.motion.motion_start`), from ``draws``' uniforms for its role, made standard normal."""
+    uniform = draws.uniform("motion", 2 * MOTION_WIDTH, links.numel())
     radius, angle = torch.sqrt(-2.0 * torch.log(uniform[:, 0::2])), 2.0 * math.pi * uniform[:, 1::2]
-    normal = (radius * torch.cos(angle)).view(-1, steps, DRAWS_PER_STEP)
-    return motion_trajectory(config.motion, normal, config.dt)
+    return start_motion(config.motion, radius * torch.cos(angle))
+
+
+def motion_normals(keys: torch.Tensor, sensed: SensorNoise | None, generator: torch.Generator, dtype, device):
+    """A step's draws with the ends' motion's among them: ``sensed`` (the sensor's, or zeros where it draws none)
+    with ``motion`` ``[n, MOTION_WIDTH]`` standard normals of the streams ``keys`` (:mod:`waterair.envs.noise`: a
+    nonce of their own from ``generator``, the rows' keys salted with the motion's role)."""
+    motion = normals(keys ^ ROLES["motion"], draw_nonce(generator), MOTION_WIDTH).to(device=device, dtype=dtype)
+    if sensed is None:
+        zero = torch.zeros_like(motion[:, 0])
+        sensed = SensorNoise(zero, zero, motion[:, :2] * 0.0, motion[:, :2] * 0.0)
+    return sensed._replace(motion=motion)

@@ -46,16 +46,17 @@ def drive_to(c: StepConstants, state: StepState, command: torch.Tensor) -> tuple
     return torch.sin(mount + terminal_angle(moved)), moved
 
 
-def point(c: StepConstants, state: StepState, command: torch.Tensor, actuated, time, steps):
+def point(c: StepConstants, state: StepState, command: torch.Tensor, actuated, time, normals):
     """Where the ends point after a step commanded to ``command`` ``[B, 4]``, and what moved them: the tilts as the
-    ends know them ``[B, 4]``, the actuators' new drive state, where the ends are at ``time`` ``[B]``, ``steps`` into
-    the episode, and their tilts in the world ``[B, 4]`` (the last two None where they stand still). Each end
-    points in its body, through its inertial reading (docs/model.md §12), then its actuators (§11); the rows of
-    ``actuated`` ``[B, 1]`` that are false (the kinematic references; None: none) point as commanded, in the world."""
+    ends know them ``[B, 4]``, the actuators' new drive state, where the ends are at ``time`` ``[B]`` (their motion
+    stepped by the standard normals ``normals``), and their tilts in the world ``[B, 4]`` (the last two None where
+    they stand still). Each end points in its body, through its inertial reading (docs/model.md §12), then its
+    actuators (§11); the rows of ``actuated`` ``[B, 1]`` that are false (the kinematic references; None: none) point
+    as commanded, in the world."""
     placed: Placement | None = None
     body, drive = command, state.drive
     if c.motion is not None:
-        placed = platforms.place(c, state, time, steps)
+        placed = platforms.place(c, state, time, normals)
         tx_true, tx_read, rx_true, rx_read = platforms.body_rotations(placed.attitude)
         body = platforms.rotate_tilts(command, tx_read, rx_read, inverse=True)
     pointed = body

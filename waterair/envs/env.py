@@ -167,6 +167,8 @@ class WaterAirEnv(EnvBase):
             )
         action = action.to(self.float_dtype).clamp(-1.0, 1.0)
         noise = self.sensor.draw(self._noise_keys, self.float_dtype, self.device)
+        if self.config.motion.moves:  # the step's draws of the ends' motion, beside the readings'
+            noise = draws.motion_normals(self._noise_keys, noise, self._sensor_generator, self.float_dtype, self.device)
         result = self.stepper(self.surface, self._full_state(), action, noise)
         self.state, outputs = result.state, result.outputs
         self.measurement = outputs.measurement
@@ -262,8 +264,7 @@ class WaterAirEnv(EnvBase):
         prepared = self.channel.prepare(tx, rx, self.surface.unresolved)
         config = self.config
         latency = self.sensor.longest_latency
-        steps = config.max_steps + 1 if config.motion.moves else 1  # an episode's trajectory, where the ends move
-        self.state = StepState.zeros(self.surface.harmonics, prepared, config.history_length, latency, steps)
+        self.state = StepState.zeros(self.surface.harmonics, prepared, config.history_length, latency)
         self.measurement = Measurement(
             gain=zeros(),
             gain_upper_bound=zeros(),
@@ -310,10 +311,9 @@ class WaterAirEnv(EnvBase):
         prepared = constants.channel.prepare(tx, rx, self.surface.unresolved[rows])
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)
         seas = self.surface[rows]
-        at_rest = StepState.zeros(seas.harmonics, prepared, config.history_length, self.sensor.longest_latency,
-                                  self.state.trajectory.shape[1])  # fmt: skip
+        at_rest = StepState.zeros(seas.harmonics, prepared, config.history_length, self.sensor.longest_latency)
         world = None
-        if config.motion.moves:  # the episode's motion, and the ends where it has them at t = 0
+        if config.motion.moves:  # the motion's start, and the ends where it has them at t = 0
             at_rest, world = self._moving(at_rest, (distinct, copy, source), tx, rx)
             tx, rx, flat = at_rest.tx_position, at_rest.rx_position, at_rest.flat_point
         links = replace(
@@ -326,7 +326,8 @@ class WaterAirEnv(EnvBase):
             prepared=prepared,
         )
         if config.actuator.fixed_mount:  # a fixed mirror starts centred on its mount
-            mount = drives.mount_tilts(config.actuator, flat, tx, rx)
+            known = links.known.unbind(1) if config.motion.moves else (tx, rx, flat)
+            mount = drives.mount_tilts(config.actuator, known[2], known[0], known[1])
             links = replace(links, tx_tilt=mount[:, :2], rx_tilt=mount[:, 2:], command=mount)
         path = solve_path(
             seas,
@@ -345,20 +346,20 @@ class WaterAirEnv(EnvBase):
             mine[rows] = value
 
     def _moving(self, links: StepState, drawn: tuple, tx: torch.Tensor, rx: torch.Tensor):
-        """``links`` at rest with their home at ``tx``, ``rx``, an episode's motion drawn (``drawn``: the distinct
-        links, where each row is among them, their draws) and the ends placed where it has them at t = 0; and the
-        tilts ``[n, 4]`` their upright ends point at in the world (their attitude)."""
+        """``links`` at rest with their home at ``tx``, ``rx``, their motion's stationary start drawn (``drawn``: the
+        distinct links, where each row is among them, their draws) and the ends placed where it has them at t = 0;
+        and the tilts ``[n, 4]`` their upright ends point at in the world (their attitude)."""
         distinct, copy, source = drawn
         motion = self.config.motion
-        path = draws.trajectory(self.config, distinct, source)[copy.cpu()].to(self.device, tx.dtype)
+        start = draws.motion_start(self.config, distinct, source)[copy.cpu()].to(self.device, tx.dtype)
         velocity = motion.velocity(tx.dtype).to(self.device).expand_as(tx)
         home = torch.stack((tx, rx, velocity), dim=1)
-        clock = (links.time, links.steps, self.config.episode_seconds)
-        at = platforms.locate(motion, links.sea, home, path, clock, None, self.optics.indices)
+        clock = (links.time, self.config.episode_seconds)
+        at = platforms.locate(motion, links.sea, home, start, clock, None, self.optics.indices)
         tx_true, tx_read, rx_true, rx_read = platforms.body_rotations(at.attitude)
         world = platforms.rotate_tilts(platforms.rotate_tilts(links.command, tx_read, rx_read, inverse=True),
                                        tx_true, rx_true)  # fmt: skip
-        links = replace(links, home=home, trajectory=path, known=at.known, tx_position=at.tx_position,
+        links = replace(links, home=home, motion=start, known=at.known, tx_position=at.tx_position,
                         rx_position=at.rx_position, flat_point=at.flat_point)  # fmt: skip
         return links, world
 

@@ -58,13 +58,13 @@ class Record(NamedTuple):
     feature: torch.Tensor
 
 
-def advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
+def advance(c: StepConstants, state: StepState, action: torch.Tensor, noise: SensorNoise | None = None) -> Moved:
     """The ends' pointing (through their actuators, where they have them), the action history and the clock after
-    ``action`` ``[B, 4]`` (already clipped to [-1, 1])."""
-    return _advance(c.for_links(state.divergence), state, action)
+    ``action`` ``[B, 4]`` (already clipped to [-1, 1]); where the ends move, with the step's draws ``noise``."""
+    return _advance(c.for_links(state.divergence), state, action, noise)
 
 
-def _advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
+def _advance(c: StepConstants, state: StepState, action: torch.Tensor, noise: SensorNoise | None = None) -> Moved:
     """:func:`advance` with ``c`` already for the links (each row's latency, where replicas sense otherwise)."""
     actuated: torch.Tensor | None = None  # the rows whose tilts go through the actuators (None: every row)
     if c.replica_actions:  # replica k's rows [k·n, (k+1)·n) act its own way: each way on every row, then chosen
@@ -82,7 +82,8 @@ def _advance(c: StepConstants, state: StepState, action: torch.Tensor) -> Moved:
     tx, rx = limit_tilt(tx, c.max_tilt), limit_tilt(rx, c.max_tilt)
     command, drive = torch.cat((tx, rx), dim=-1), state.drive
     time, steps = state.time + c.dt, state.steps + 1
-    pointed, drive, placed, world = drives.point(c, state, command, actuated, time, steps)
+    normals = None if noise is None else noise.motion
+    pointed, drive, placed, world = drives.point(c, state, command, actuated, time, normals)
     return Moved(
         tx_tilt=pointed[:, :2],
         rx_tilt=pointed[:, 2:],
@@ -358,7 +359,7 @@ def step(c: StepConstants, state: StepState, action: torch.Tensor, noise: Sensor
     sensor's draw for this step (:meth:`Sensor.draw`), or None for a noiseless one.
     """
     links = c.for_links(state.divergence)  # once for the step's two stages
-    moved = _advance(links, state, action)
+    moved = _advance(links, state, action, noise)
     return _conclude(links, state, moved, solve(c, placed(state, moved), moved.time), noise, None)
 
 

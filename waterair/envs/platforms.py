@@ -2,9 +2,10 @@
 controllers know of it, and how each end's attitude turns a pointing in its own frame into the world's
 (docs/model.md §12).
 
-A link keeps its *home* (the positions its reset drew, and the drone's transit velocity) and an episode's
-*trajectory* (:func:`waterair.physics.motion.trajectory`, drawn at the reset from the link's keyed draws): the
-drone's drift and each end's attitude and inertial reading, per step. At a step's time the vehicle is at home
+A link keeps its *home* (the positions its reset drew, and the drone's transit velocity) and its motion's state:
+the drone's drift and each end's attitude and inertial error, drawn stationary at the reset from the link's
+keyed draws, then stepped exactly each step (:func:`waterair.physics.motion.motion_step`) from standard normals
+drawn as the sensor's noise is (:mod:`waterair.envs.noise`). At a step's time the vehicle is at home
 plus the water's orbital motion there (times its response), and the drone on its path (home, plus its transit
 about the episode's middle) plus its drift. The controllers know the path, not the drift nor the orbit: the
 ``known`` ends (and their calm-sea point) are what :func:`known_ends` gives every controller, the true ones
@@ -23,7 +24,7 @@ import torch
 from waterair.envs.constants import StepConstants
 from waterair.envs.state import Placement, StepState
 from waterair.physics.channel import pointing
-from waterair.physics.motion import Motion, orbital_motion, rotation
+from waterair.physics.motion import Motion, attitudes, motion_step, orbital_motion, rotation
 from waterair.physics.optics import RefractiveIndices
 from waterair.physics.paths import flat_sea_point, flat_sea_point_near
 from waterair.physics.surface import Harmonics
@@ -36,41 +37,39 @@ def known_ends(c: StepConstants, state: StepState) -> tuple[torch.Tensor, torch.
     return state.known[:, 0], state.known[:, 1], state.known[:, 2]
 
 
-def place(c: StepConstants, state: StepState, time: torch.Tensor, steps: torch.Tensor) -> Placement:
-    """The ends of ``state``'s links at ``time`` ``[B]`` (s), its ``steps`` ``[B]`` into the episode; their calm-sea
-    points from the last ones (they move little in a step)."""
+def place(c: StepConstants, state: StepState, time: torch.Tensor, normals: torch.Tensor) -> Placement:
+    """The ends of ``state``'s links at ``time`` ``[B]`` (s), a step on, their motion stepped by the standard normals
+    ``normals`` ``[B, MOTION_WIDTH]``; their calm-sea points from the last ones (they move little in a step)."""
     assert c.motion is not None  # the kernel places the ends only where they move
+    motion = motion_step(c.motion, state.motion, normals, c.dt, c.motion_transitions)
     near = (state.flat_point, state.known[:, 2])
-    return locate(c.motion, state.sea, state.home, state.trajectory, (time, steps, c.episode_seconds), near,
-                  c.optics.indices)  # fmt: skip
+    return locate(c.motion, state.sea, state.home, motion, (time, c.episode_seconds), near, c.optics.indices)
 
 
 def locate(
     motion: Motion,
     sea: Harmonics,
     home: torch.Tensor,
-    trajectory: torch.Tensor,
-    clock: tuple[torch.Tensor, torch.Tensor, float],
+    state: torch.Tensor,
+    clock: tuple[torch.Tensor, float],
     near: tuple[torch.Tensor, torch.Tensor] | None,
     indices: RefractiveIndices,
 ) -> Placement:
-    """:func:`place` from the parts: the links' ``home`` ``[B, 3, 3]`` (T, R, the transit velocity), their
-    ``trajectory`` ``[B, T, 11]``, ``clock`` (time, steps, the episode's length), the last calm-sea points ``near``
-    (true, known; None: solved afresh, as at a reset)."""
-    time, steps, episode = clock
+    """:func:`place` from the parts: the links' ``home`` ``[B, 3, 3]`` (T, R, the transit velocity), their motion's
+    ``state`` ``[B, MOTION_WIDTH]`` at the time, ``clock`` (the time, the episode's length), the last calm-sea points
+    ``near`` (true, known; None: solved afresh, as at a reset)."""
+    time, episode = clock
     tx_home, rx_home, velocity = home.unbind(1)
-    row = trajectory.gather(1, steps.clamp(max=trajectory.shape[1] - 1).view(-1, 1, 1).expand(-1, 1, 11))[:, 0]
     known_rx = rx_home + velocity * (time - 0.5 * episode).unsqueeze(-1).to(home.dtype)
     tx = tx_home + orbital_motion(sea, tx_home, time, motion.vehicle_response).displacement
-    rx = known_rx + row[:, :3]
+    rx = known_rx + state[:, :3]
     if near is None:
         flat, known_flat = flat_sea_point(tx, rx, *indices), flat_sea_point(tx_home, known_rx, *indices)
     else:
-        flat, known_flat = (
-            flat_sea_point_near(tx, rx, near[0], *indices),
-            flat_sea_point_near(tx_home, known_rx, near[1], *indices),
-        )
-    return Placement(tx, rx, flat, torch.stack((tx_home, known_rx, known_flat), dim=1), row[:, 3:])
+        flat = flat_sea_point_near(tx, rx, near[0], *indices)
+        known_flat = flat_sea_point_near(tx_home, known_rx, near[1], *indices)
+    known = torch.stack((tx_home, known_rx, known_flat), dim=1)
+    return Placement(tx, rx, flat, known, attitudes(state), state)
 
 
 def body_rotations(attitude: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:

@@ -173,6 +173,9 @@ class SensorNoise(NamedTuple):
     """``[n, 2]``: the spot reading's two components."""
     beacon: torch.Tensor
     """``[n, 2]``: the beacon reading's two components."""
+    motion: torch.Tensor | None = None
+    """``[n, MOTION_WIDTH]``: the step's draws of the ends' motion, where they move (``env.motion``; the inertial
+    sensors' errors among them), drawn beside the readings' (:mod:`waterair.envs.platforms`)."""
 
 
 class Sensor:

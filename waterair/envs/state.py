@@ -17,11 +17,9 @@ import torch
 
 from waterair.envs.sensors import packet_sizes
 from waterair.physics.actuator import DRIVE_WIDTH
-from waterair.physics.motion import TRAJECTORY_COLUMNS
+from waterair.physics.motion import MOTION_WIDTH
 from waterair.physics.paths import Iterate
 from waterair.physics.surface import Harmonics
-
-TRAJECTORY_WIDTH = len(TRAJECTORY_COLUMNS)
 
 
 class Tilts(NamedTuple):
@@ -34,13 +32,15 @@ class Tilts(NamedTuple):
 class Placement(NamedTuple):
     """Where moving ends are at a step (:mod:`waterair.envs.platforms`): the true T, R and calm-sea point ``[B, 3]``
     each, what the controllers know of them (``known`` ``[B, 3, 3]``: T, R and their calm-sea point), and each end's
-    true and inertially read attitude (``attitude`` ``[B, 8]``: tx roll, pitch, its reading's, then rx's)."""
+    true and inertially read attitude (``attitude`` ``[B, 8]``: tx roll, pitch, its reading's, then rx's), and the
+    motion's state then (``motion`` ``[B, MOTION_WIDTH]``)."""
 
     tx_position: torch.Tensor
     rx_position: torch.Tensor
     flat_point: torch.Tensor
     known: torch.Tensor
     attitude: torch.Tensor
+    motion: torch.Tensor
 
 
 class Moved(NamedTuple):
@@ -96,10 +96,11 @@ class StepState:
         base_tilt: the residual base controller's tilts ``[B, 4]`` for the next action, from this state (computed
             once, where a step concludes or the environment resets, and read by the next step's actions).
         prepared: the channel's per-episode constants, a named tuple (``ChannelModel.Prepared``) of ``[B, ...]``.
-        home, known, trajectory: where the ends move (``env.motion``; zeros otherwise): each link's T and R as its
+        home, known, motion: where the ends move (``env.motion``; zeros otherwise): each link's T and R as its
             reset drew them and the drone's transit velocity ``[B, 3, 3]``; T, R and their calm-sea point as the
-            controllers know them now ``[B, 3, 3]``; the episode's drift and attitudes ``[B, T, 11]``
-            (:mod:`waterair.envs.platforms`). ``tx_position``, ``rx_position`` and ``flat_point`` are the true ones.
+            controllers know them now ``[B, 3, 3]``; the drift's, the attitudes' and the inertial errors' state
+            ``[B, MOTION_WIDTH]`` (:func:`waterair.physics.motion.motion_step`). ``tx_position``, ``rx_position``
+            and ``flat_point`` are the true ones.
     """
 
     sea: Harmonics
@@ -124,15 +125,13 @@ class StepState:
     prepared: tuple
     home: torch.Tensor
     known: torch.Tensor
-    trajectory: torch.Tensor
+    motion: torch.Tensor
 
     @classmethod
-    def zeros(
-        cls, sea: Harmonics, prepared: tuple, history_length: int, latency_steps: int, trajectory_steps: int = 1
-    ) -> StepState:
+    def zeros(cls, sea: Harmonics, prepared: tuple, history_length: int, latency_steps: int) -> StepState:
         """A state of zeros for the links of ``sea`` (their number, device and float dtype), with room for
-        ``history_length`` features and actions, ``latency_steps + 1`` packets in flight, the channel's
-        ``prepared`` constants (one link's worth of each is their shape) and ``trajectory_steps`` of motion."""
+        ``history_length`` features and actions, ``latency_steps + 1`` packets in flight and the channel's
+        ``prepared`` constants (one link's worth of each is their shape)."""
         batch, dtype, device = sea.omega.shape[0], sea.omega.dtype, sea.omega.device
 
         def zeros(*shape: int, kind: torch.dtype = dtype) -> torch.Tensor:
@@ -161,7 +160,7 @@ class StepState:
             prepared=type(prepared)(*(zeros(*value.shape[1:]) for value in prepared)),
             home=zeros(3, 3),
             known=zeros(3, 3),
-            trajectory=zeros(trajectory_steps, TRAJECTORY_WIDTH),
+            motion=zeros(MOTION_WIDTH),
         )
 
     def after(self, moved: Moved, **changes: torch.Tensor) -> StepState:
@@ -170,7 +169,8 @@ class StepState:
         if moved.placed is not None:
             placed = moved.placed
             changes = dict(tx_position=placed.tx_position, rx_position=placed.rx_position,
-                           flat_point=placed.flat_point, known=placed.known, **changes)  # fmt: skip
+                           flat_point=placed.flat_point, known=placed.known, motion=placed.motion,
+                           **changes)  # fmt: skip
         return replace(
             self,
             tx_tilt=moved.tx_tilt,

@@ -114,7 +114,7 @@ class Stepper:
         if self._one_graph:
             result = self._step(self.traced, state, action, noise)
         else:  # the same stages, the solve or the light eager
-            moved = kernel.advance(self.constants, state, action)
+            moved = kernel.advance(self.constants, state, action, noise)
             at = kernel.placed(state, moved)  # the ends where they are at the step (where they move)
             solution = self._solve(surface, at, moved)
             light = None if self._light is None else self._light(at, moved, solution)

@@ -22,8 +22,8 @@ inertia, so its velocity is finite): ẍ = −ω² x − 2 ζ ω ẋ + q w, stat
 two uncorrelated. Stepped exactly (:class:`Oscillator`): (x, ẋ)' = Φ (x, ẋ) + L n, Φ = exp(A Δt) and
 L Lᵀ = P − Φ P Φᵀ, P the stationary covariance, both in float64.
 
-:class:`Motion` is both ends' motion as a configuration names it (``env.motion.*``); :func:`trajectory` draws an
-episode of it from standard normals, and :func:`place` puts the ends where it says at a time.
+:class:`Motion` is both ends' motion as a configuration names it (``env.motion.*``); :func:`motion_start` and
+:func:`motion_step` draw and step its state from standard normals.
 """
 
 from __future__ import annotations
@@ -129,22 +129,14 @@ class Oscillator:
         added = stationary - phi @ stationary @ phi.T
         return phi, torch.linalg.cholesky(0.5 * (added + added.T))
 
-    def start(self, noise: torch.Tensor) -> torch.Tensor:
-        """A stationary start ``[..., 2]`` (value, rate) from two standard normals ``noise`` ``[..., 2]``."""
-        scale = torch.tensor([self.sigma, 2.0 * math.pi / self.period * self.sigma], dtype=noise.dtype)
-        return noise * scale.to(noise.device)
-
 
 MOTIONS = ("static", "hover", "transit")
 """How the ends move (``env.motion.kind``): not at all; the drone hovering and the vehicle in the sea's orbital
 motion; the same with the drone crossing the link at a constant velocity."""
-TRAJECTORY_COLUMNS = ("drift_x", "drift_y", "drift_z", "tx_roll", "tx_pitch", "tx_imu_roll", "tx_imu_pitch",
-                      "rx_roll", "rx_pitch", "rx_imu_roll", "rx_imu_pitch")  # fmt: skip
-"""A trajectory's columns (:func:`trajectory`): the drone's drift from its path (m), each end's attitude and what its
-inertial sensor reads of it (rad)."""
-DRAWS_PER_STEP = 18
-"""The standard normals a trajectory takes per step: two for each of its seven oscillators (the drift's three axes,
-each end's roll and pitch), one for each of the four inertial sensors' errors."""
+MOTION_WIDTH = 18
+"""A motion state's columns (:func:`motion_start`): the seven oscillators' values (the drift's x, y, z (m), the
+vehicle's roll and pitch, the drone's (rad)), then their rates, then the four inertial errors (the vehicle's roll
+and pitch, the drone's); and the standard normals a step of it takes."""
 
 
 @dataclass(frozen=True)
@@ -206,6 +198,15 @@ class Motion:
         drone = Oscillator(self.drone_attitude, self.drone_attitude_period, self.attitude_damping)
         return (*(Oscillator(s, self.drift_period, self.drift_damping) for s in drift), vehicle, vehicle, drone, drone)
 
+    @functools.cache  # noqa: B019 (frozen and hashable: once per configuration and step, outside the step's graph)
+    def transitions(self, dt: float) -> tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ...], ...]]:
+        """The oscillators' Φ and L (:meth:`Oscillator.transition`) over ``dt``, as floats: each a tuple of its four
+        entries (row by row), each entry a tuple over :attr:`oscillators`."""
+        rows = [o.transition(dt) for o in self.oscillators]
+        phi = tuple(zip(*(p.flatten().tolist() for p, _ in rows), strict=True))
+        lower = tuple(zip(*(low.flatten().tolist() for _, low in rows), strict=True))
+        return phi, lower
+
     def velocity(self, dtype: torch.dtype = torch.float64) -> torch.Tensor:
         """The drone's transit velocity ``[3]`` (m/s): zero but for ``transit``."""
         speed = self.transit_speed if self.kind == "transit" else 0.0
@@ -213,24 +214,32 @@ class Motion:
         return torch.tensor([speed * math.cos(heading), speed * math.sin(heading), 0.0], dtype=dtype)
 
 
-def trajectory(motion: Motion, normals: torch.Tensor, dt: float) -> torch.Tensor:
-    """An episode of the drift and the attitudes ``[m, T, 11]`` (:data:`TRAJECTORY_COLUMNS`) at the steps 0 … T − 1
-    of ``dt`` (s), from standard normals ``normals`` ``[m, T, DRAWS_PER_STEP]`` (float64); each process starts
-    stationary. An inertial sensor reads its end's attitude plus an Ornstein–Uhlenbeck error."""
-    oscillators, imu = motion.oscillators, Process(motion.imu_error, motion.imu_time)
-    pairs, kicks = normals.split((14, 4), dim=-1)
-    pairs = pairs.unflatten(-1, (7, 2))
-    transitions = [o.transition(dt) for o in oscillators]
-    phi = torch.stack([p for p, _ in transitions]).to(normals.dtype)
-    lower = torch.stack([low for _, low in transitions]).to(normals.dtype)
-    state = torch.stack([o.start(pairs[:, 0, i]) for i, o in enumerate(oscillators)], dim=1)  # [m, 7, 2]
-    error = ou_start(imu, kicks[:, 0])
-    values, errors = [state[..., 0]], [error]
-    for step in range(1, normals.shape[1]):
-        state = torch.einsum("kij,mkj->mki", phi, state) + torch.einsum("kij,mkj->mki", lower, pairs[:, step])
-        error = ou_step(imu, error, kicks[:, step], dt)
-        values.append(state[..., 0])
-        errors.append(error)
-    value, error = torch.stack(values, dim=1), torch.stack(errors, dim=1)  # [m, T, 7], [m, T, 4]
-    tx, rx = value[..., 3:5], value[..., 5:7]
-    return torch.cat((value[..., :3], tx, tx + error[..., :2], rx, rx + error[..., 2:]), dim=-1)
+def motion_start(motion: Motion, normals: torch.Tensor) -> torch.Tensor:
+    """A stationary motion state ``[m, MOTION_WIDTH]`` from standard normals ``normals`` ``[m, MOTION_WIDTH]``."""
+    scales = [o.sigma for o in motion.oscillators] + [2.0 * math.pi / o.period * o.sigma for o in motion.oscillators]
+    scale = torch.tensor(scales + [motion.imu_error] * 4, dtype=normals.dtype, device=normals.device)
+    return normals * scale
+
+
+def motion_step(
+    motion: Motion, state: torch.Tensor, normals: torch.Tensor, dt: float, transitions=None
+) -> torch.Tensor:
+    """The motion state ``[m, MOTION_WIDTH]`` ``dt`` (s) after ``state``, exactly: each oscillator (x, ẋ) → Φ (x, ẋ)
+    + L n, each inertial error ρ e + σ √(1 − ρ²) n, from standard normals ``normals`` ``[m, MOTION_WIDTH]`` (the
+    oscillators' two each, then the errors'). ``transitions``: ``motion.transitions(dt)``, where the caller has them
+    (a compiled step takes them as constants)."""
+    transitions = motion.transitions(dt) if transitions is None else transitions
+    phi, lower = (torch.tensor(part, dtype=state.dtype, device=state.device) for part in transitions)
+    x, v, error = state[:, :7], state[:, 7:14], state[:, 14:]
+    n0, n1 = normals[:, :7], normals[:, 7:14]
+    moved_x = phi[0] * x + phi[1] * v + lower[0] * n0
+    moved_v = phi[2] * x + phi[3] * v + lower[2] * n0 + lower[3] * n1
+    imu = ou_step(Process(motion.imu_error, motion.imu_time), error, normals[:, 14:], dt)
+    return torch.cat((moved_x, moved_v, imu), dim=-1)
+
+
+def attitudes(state: torch.Tensor) -> torch.Tensor:
+    """Each end's true attitude and its inertial reading ``[m, 8]`` (rad: the vehicle's roll, pitch, their readings,
+    then the drone's) of motion states ``[m, MOTION_WIDTH]``."""
+    tx, rx, error = state[:, 3:5], state[:, 5:7], state[:, 14:]
+    return torch.cat((tx, tx + error[:, :2], rx, rx + error[:, 2:]), dim=-1)
