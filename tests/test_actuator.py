@@ -38,6 +38,17 @@ def test_a_step_follows_the_second_order_closed_form(zeta):
         assert state.angle.item() == pytest.approx(0.2 * _step_response(n * dt, 4.0, zeta), rel=1e-9, abs=1e-13)
 
 
+@pytest.mark.parametrize(("f_n", "zeta", "dt"), [(8.0, 0.7, 0.05), (585.0, 0.4, 0.05), (2.0, 1.0, 0.05),
+                                                  (2.0, 3.0, 0.05), (1e5, 10.0, 10.0), (1e5, 0.01, 1e-6)])  # fmt: skip
+def test_the_closed_form_transition_is_the_matrix_exponential_and_never_overflows(f_n, zeta, dt):
+    axis = Axis(natural_frequency=f_n, damping=zeta)
+    w = axis.omega
+    expected = torch.linalg.matrix_exp(torch.tensor([[0.0, 1.0], [-(w**2), -2 * zeta * w]], dtype=F64) * dt)
+    got = torch.tensor(axis.transition(dt), dtype=F64)
+    assert torch.isfinite(got).all()
+    assert torch.allclose(got, expected, rtol=1e-9, atol=1e-10 * expected.abs().max().item())
+
+
 def test_a_held_ramp_is_the_sum_of_its_steps():
     axis, dt = Axis(natural_frequency=3.0, damping=0.6), 0.05
     targets = [0.01 * (n + 1) for n in range(30)]  # a ramp, each command held for its step

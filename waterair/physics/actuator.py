@@ -5,8 +5,8 @@ Each axis obeys
     θ̈ = ω_n² (u − θ) − 2 ζ ω_n θ̇
 
 with the command u held over a step (zero-order hold). Over a step of Δt the state (θ − u, θ̇) moves by the
-matrix exponential Φ = exp(A Δt), A = [[0, 1], [−ω_n², −2 ζ ω_n]], computed once per configuration in float64:
-the closed form, exact at any Δt, however stiff the axis. Only where a limit binds (the rate, the
+matrix exponential Φ = exp(A Δt), A = [[0, 1], [−ω_n², −2 ζ ω_n]], in closed form in float64 (Python floats):
+exact at any Δt, however stiff the axis. Only where a limit binds (the rate, the
 acceleration, the range) is the step split into sub-steps, each the exact response over its length, then
 projected onto the limits (:func:`respond`): the state a step reports never exceeds them.
 
@@ -69,13 +69,27 @@ class Axis:
         """ω_n (rad/s)."""
         return 2.0 * math.pi * self.natural_frequency
 
-    @functools.cache  # noqa: B019 (a frozen, hashable axis: one matrix exponential per axis and step length)
     def transition(self, dt: float) -> tuple[tuple[float, float], tuple[float, float]]:
-        """Φ = exp(A ``dt``) as two rows of floats (float64): (θ − u, θ̇) after ``dt`` is Φ · (θ − u, θ̇) before."""
+        """Φ = exp(A ``dt``) as two rows of floats (float64): (θ − u, θ̇) after ``dt`` is Φ · (θ − u, θ̇) before.
+
+        In closed form, in plain Python, uncached (a compiled step traces it to constants, a cache wrapper would only
+        warn): with A's eigenvalues
+        s ± q, s = −ζ ω_n, q² = s² − ω_n², exp(A t) = a₀ I + a₁ A, a₀ = e^{st} (cosh qt − s sinh(qt)/q),
+        a₁ = e^{st} sinh(qt)/q (cos and sin for q² < 0; a₁ = t e^{st} at q = 0), the overdamped one from the two
+        exponentials, so no term overflows."""
         w, z = self.omega, self.damping
-        a = torch.tensor([[0.0, 1.0], [-(w**2), -2.0 * z * w]], dtype=torch.float64)
-        phi = torch.linalg.matrix_exp(a * dt).tolist()
-        return (phi[0][0], phi[0][1]), (phi[1][0], phi[1][1])
+        s, d = -z * w, (z * w) ** 2 - w**2
+        if d > 0.0:  # overdamped: e^{(s ± q) t}, both decaying
+            q = math.sqrt(d)
+            fast, slow = math.exp((s - q) * dt), math.exp((s + q) * dt)
+            even, odd = 0.5 * (slow + fast), (slow - fast) / (2.0 * q)
+        elif d < 0.0:
+            q, decay = math.sqrt(-d), math.exp(s * dt)
+            even, odd = decay * math.cos(q * dt), decay * math.sin(q * dt) / q
+        else:
+            even, odd = math.exp(s * dt), dt * math.exp(s * dt)
+        a0, a1 = even - s * odd, odd
+        return (a0, a1), (-(w**2) * a1, a0 - 2.0 * z * w * a1)
 
     def sampled_lag(self, dt: float) -> float:
         """How far (s) the axis trails a ramp at the ends of steps of ``dt``, once settled, when each step commands
