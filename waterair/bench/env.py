@@ -44,9 +44,11 @@ def worker(
     sea="paper",
     lattice: str = "",
     actuator: str = "ideal",
+    motion: str = "static",
 ) -> dict:
     """Time raw ``env.step`` and ``env.rollout`` at one batch size (runs inside the worker); ``lattice``
-    "nodes:span" sets the full channel's lattice (default: the env's), ``actuator`` the ends' (``env/actuator``)."""
+    "nodes:span" sets the full channel's lattice (default: the env's), ``actuator`` the ends' (``env/actuator``),
+    ``motion`` how they move (``env/motion``)."""
     baseline_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     start = time.perf_counter()
     env = WaterAirEnv(
@@ -59,6 +61,7 @@ def worker(
         max_steps=10**6,
         channel={"name": channel, **lattice_settings(lattice)},
         actuator={"kind": actuator},
+        motion={"kind": motion},
         **SEAS[sea],
     )
     td = env.reset()
@@ -100,6 +103,7 @@ def worker(
         "channel": channel,
         "sea": sea,
         "actuator": actuator,
+        "motion": motion,
         "steps_timed": steps,
         "step_s": step_s,
         "env_steps_per_s": batch / step_s,
@@ -166,9 +170,9 @@ def lattice_settings(lattice: str) -> dict:
 
 
 def run_worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype: str, *case: str):
-    """One :func:`worker` in a fresh process; its record. ``case``: the channel, the sea, the lattice and the
-    actuator, each as :func:`worker` takes it (the last two may be left out)."""
-    case = (*case, *("single_path", "paper", "", "ideal")[len(case) :])
+    """One :func:`worker` in a fresh process; its record. ``case``: the channel, the sea, the lattice, the actuator
+    and the motion, each as :func:`worker` takes it (the last three may be left out)."""
+    case = (*case, *("single_path", "paper", "", "ideal", "static")[len(case) :])
     args = [sys.executable, "-m", "waterair.bench.env", str(batch), solver, str(int(compile_kernel))]
     done = subprocess.run([*args, device, dtype, *case], capture_output=True, text=True, check=False)
     if done.returncode != 0:
@@ -179,18 +183,20 @@ def run_worker(batch: int, solver: str, compile_kernel: bool, device: str, dtype
 def bench_channels(sizes, compile_kernel: bool, device: str, dtype: str, lattices=("",)) -> dict:
     """The channel models side by side, in one run: (channel, sea) for every B, each in its own process; the
     full channel on the measured-slope sea once per lattice ("nodes:span", "" the default), and once more through
-    a gimbal carrying a mirror at each end (``env/actuator=gimbal_fsm``: what the actuators cost a step)."""
+    a gimbal carrying a mirror at each end (``env/actuator=gimbal_fsm``: what the actuators cost a step), and with
+    the ends moving too (``env/motion=hover``)."""
     rows = []
     cases = [
-        ("single_path", "paper", "", "ideal"),
-        ("full", "paper", "", "ideal"),
-        ("single_path", "ocean", "", "ideal"),
+        ("single_path", "paper", "", "ideal", "static"),
+        ("full", "paper", "", "ideal", "static"),
+        ("single_path", "ocean", "", "ideal", "static"),
     ]
-    cases += [("full", "ocean", lattice, "ideal") for lattice in lattices] + [("full", "ocean", "", "gimbal_fsm")]
+    cases += [("full", "ocean", lattice, "ideal", "static") for lattice in lattices]
+    cases += [("full", "ocean", "", "gimbal_fsm", "static"), ("full", "ocean", "", "gimbal_fsm", "hover")]
     for batch in sizes:
-        for channel, sea, lattice, actuator in cases:
-            rows.append(run_worker(batch, "newton", compile_kernel, device, dtype, channel, sea, lattice, actuator))
-            rows[-1]["lattice"] = lattice
+        for case in cases:
+            rows.append(run_worker(batch, "newton", compile_kernel, device, dtype, *case))
+            rows[-1]["lattice"] = case[2]
             print(env_row(rows[-1]), flush=True)
     resolved = resolve_device(device)
     return {
@@ -252,12 +258,13 @@ def _label(r: dict) -> str:
         return r["solver"]
     lattice = f" ({r['lattice'].replace(':', ' nodes ±')} σ)" if r.get("lattice") else ""
     actuator = f", {r['actuator']}" if r.get("actuator", "ideal") != "ideal" else ""
-    return f"{r['channel']}, {r['sea']}{lattice}{actuator}"
+    motion = f", {r['motion']}" if r.get("motion", "static") != "static" else ""
+    return f"{r['channel']}, {r['sea']}{lattice}{actuator}{motion}"
 
 
 if __name__ == "__main__":
     from waterair.core.process import set_up_process
 
     set_up_process()  # as train.py's process
-    batch_arg, solver_arg, compile_arg, device_arg, dtype_arg, *case_args = sys.argv[1:10]
+    batch_arg, solver_arg, compile_arg, device_arg, dtype_arg, *case_args = sys.argv[1:11]
     print(json.dumps(worker(int(batch_arg), solver_arg, bool(int(compile_arg)), device_arg, dtype_arg, *case_args)))
