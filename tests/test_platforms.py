@@ -12,6 +12,7 @@ import torch
 from waterair.envs.config import EnvConfig
 from waterair.envs.drives import flat_tilts
 from waterair.envs.env import WaterAirEnv
+from waterair.evaluation.rollouts import kinematic
 from waterair.physics.motion import (
     MOTION_WIDTH,
     Motion,
@@ -164,6 +165,8 @@ def test_each_end_points_through_its_attitude_and_a_perfect_inertial_reading_tak
 
 
 def test_the_kinematic_reference_points_where_it_is_told_in_the_world_whatever_the_attitude():
+    members = [("tracking", "tracking"), ("snell", "flat_snell")]
+    assert kinematic(EnvConfig(motion={"kind": "hover"}), members) == ({"actuated": False}, {})  # evaluation's
     motion = dict(STILL, kind="hover", drone_attitude=0.05, imu_error=0.02)
     env = WaterAirEnv(EnvConfig(**SMALL, motion=motion, actuated=False))
     td = env.reset()

@@ -78,8 +78,9 @@ KINEMATIC = ("tracking",)
 
 def kinematic(config: EnvConfig, members) -> tuple | None:
     """``config``'s ways of acting per replica (``env.replica_actions``), a kinematic reference's not actuated where
-    the ends have actuators."""
-    if not config.actuator.moves or not any(reference_name(m) in KINEMATIC for _, m in members):
+    the ends have actuators or move (it points in the world, through neither the actuators nor an attitude)."""
+    bypassed = config.actuator.moves or config.motion.moves
+    if not bypassed or not any(reference_name(m) in KINEMATIC for _, m in members):
         return config.replica_actions
     ways = [dict(way) for way in config.replica_actions or [()] * len(members)]
     return tuple({**way, "actuated": False} if reference_name(m) in KINEMATIC else way
