@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import pytest
 import torch
 from test_beacon import LATE, TWO_ENDED, paper_physics
 
@@ -117,3 +118,28 @@ def test_pointing_ahead_through_slewing_gimbals_the_kalman_tracker_beats_the_bea
     ratio = {label: run["gain"].double().mean((0, 2)) / run["gain_upper_bound"].double().mean((0, 2)) for
              label, run in runs.items()}  # fmt: skip
     assert bool((ratio["kalman"] > ratio["tracker"] + 0.03).all()), ratio
+
+
+def test_following_a_drone_at_constant_velocity_the_kalman_tracker_has_no_steady_lag_and_the_reactive_one_its_own():
+    """A calm sea, ideal sensing two steps late, the drone crossing at 1.5 m/s, nothing else moving: the reactive
+    tracker's receiver trails the arrival by the angle it turns over the readings' age, (latency + 1) Δt times its
+    rate; the filter, which learns that rate, trails by a small part of it."""
+    still = dict(drift_horizontal=0.0, drift_vertical=0.0, drone_attitude=0.0, vehicle_attitude=0.0, imu_error=0.0,
+                 vehicle_response=0.0, transit_speed=1.5)  # fmt: skip
+    config = EnvConfig(num_envs=2, seed=2, dtype="float64", observation_extras=TWO_ENDED, sea={"flat": True},
+                       latency_steps=2, max_steps=80, motion={"kind": "transit", **still})  # fmt: skip
+    errors = {}
+    for name, kind in (("reactive", BeaconTracker), ("kalman", KalmanTracker)):
+        env = WaterAirEnv(config)
+        controller, td, trace = kind(env), env.reset(), []
+        for _ in range(60):
+            tx_dir, rx_dir = controller.directions(td)
+            td = env.step(td.set("action", env.action_for_pointing(tx_dir, rx_dir, td["tilt"], td.get("base_tilt"))))
+            td = td["next"]
+            trace.append((td["alpha_a"].clone(), td["arrival"].clone()))
+        errors[name] = torch.stack([alpha for alpha, _ in trace[-20:]]).mean().item()
+        turn = torch.stack([arrival for _, arrival in trace[-21:]])
+        rate = torch.acos((turn[1:] * turn[:-1]).sum(-1).clamp(max=1.0)).mean().item() / env.config.dt
+    lag = rate * (config.latency_steps + 1) * config.dt
+    assert errors["reactive"] == pytest.approx(lag, rel=0.25)
+    assert errors["kalman"] < 0.2 * errors["reactive"]

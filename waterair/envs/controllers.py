@@ -101,7 +101,8 @@ class KalmanTracker(BeaconTracker):
     * The motion: white acceleration of the variance the link's own sea gives the direction of its light, the
       slope's acceleration Σ a² k_c² ω⁴ / 2 per component c over the resolved harmonics, times the share of a
       slope the refracted light turns by (1 − n_air/n_water at the transmitter, n_water/n_air − 1 at the
-      receiver); a track starts at the slope rate's variance, Σ a² k_c² ω² / 2 times the same.
+      receiver); a track starts at the slope rate's variance, Σ a² k_c² ω² / 2 times the same. Where the ends
+      move (``env.motion``), the drone's drift and transit add theirs (:meth:`_motion_variances`).
     * Pointing ahead over what separates the reading from the pointing it sets: one step at the transmitter,
       ``latency_steps + 1`` at the receiver, and the actuators' lag (``env.actuator``: how far the axis that
       points last trails a ramp commanded once a step; none without actuators).
@@ -132,7 +133,23 @@ class KalmanTracker(BeaconTracker):
             [1 - optics.n_air / optics.n_water, optics.n_water / optics.n_air - 1], dtype=torch.float64
         )
         acceleration = (slope * omega**4).sum(1) / 2, (slope * omega**2).sum(1) / 2  # [B, 2] each
-        return tuple(share.view(2, 1, 1).to(sea.omega.device) ** 2 * each.unsqueeze(0) for each in acceleration)
+        sea_terms = [share.view(2, 1, 1).to(sea.omega.device) ** 2 * each.unsqueeze(0) for each in acceleration]
+        return tuple(each + motion for each, motion in zip(sea_terms, self._motion_variances(), strict=True))
+
+    def _motion_variances(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """What the drone's own motion adds to both (``env.motion``; none where the ends stand still) ``[2, 1, 1]``:
+        a horizontal move of the drone turns each end's calm-sea direction by n_a (tx) or n_w (rx) over
+        n_w h + n_a d per metre (small angles); the drift's rate variance ω² σ² and its oscillator's driving
+        intensity 4 ζ ω³ σ² over a step, and the transit's speed², through those gains."""
+        motion, geometry, optics = self.env.config.motion, self.env.config.geometry, self.env.optics
+        if not motion.moves:
+            return torch.zeros(2, 1, 1, dtype=torch.float64), torch.zeros(2, 1, 1, dtype=torch.float64)
+        across = optics.n_water * geometry.rx_height + optics.n_air * geometry.tx_depth
+        gain = torch.tensor([optics.n_air, optics.n_water], dtype=torch.float64).view(2, 1, 1) / across
+        omega, sigma = 2.0 * math.pi / motion.drift_period, motion.drift_horizontal
+        speed = motion.transit_speed if motion.kind == "transit" else 0.0
+        acceleration = 4.0 * motion.drift_damping * omega**3 * sigma**2 / self.env.config.dt
+        return gain**2 * acceleration, gain**2 * ((omega * sigma) ** 2 + speed**2)
 
     def _rows(self, variance: torch.Tensor, rows: int) -> torch.Tensor:
         batch = variance.shape[1]
