@@ -37,10 +37,13 @@ def known_ends(c: StepConstants, state: StepState) -> tuple[torch.Tensor, torch.
     return state.known[:, 0], state.known[:, 1], state.known[:, 2]
 
 
-def place(c: StepConstants, state: StepState, time: torch.Tensor, normals: torch.Tensor) -> Placement:
+def place(c: StepConstants, state: StepState, time: torch.Tensor, normals: torch.Tensor | None) -> Placement:
     """The ends of ``state``'s links at ``time`` ``[B]`` (s), a step on, their motion stepped by the standard normals
     ``normals`` ``[B, MOTION_WIDTH]``; their calm-sea points from the last ones (they move little in a step)."""
     assert c.motion is not None  # the kernel places the ends only where they move
+    if normals is None:
+        raise ValueError("ends that move (env.motion) need each step's draws of it: SensorNoise.motion, which "
+                         "WaterAirEnv draws (waterair.envs.draws.motion_normals)")  # fmt: skip
     motion = motion_step(c.motion, state.motion, normals, c.dt, c.motion_transitions)
     near = (state.flat_point, state.known[:, 2])
     return locate(c.motion, state.sea, state.home, motion, (time, c.episode_seconds), near, c.optics.indices)
