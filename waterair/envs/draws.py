@@ -21,7 +21,7 @@ import torch
 
 from waterair.core.hashing import key, mix, uniforms
 from waterair.envs.config import EnvConfig
-from waterair.envs.noise import draw_nonce, normals, stream_keys
+from waterair.envs.noise import box_muller, draw_nonce, normals, stream_keys
 from waterair.envs.operating_point import PER_LINK
 from waterair.envs.sensors import SensorNoise
 from waterair.physics.motion import MOTION_WIDTH
@@ -132,9 +132,7 @@ def per_link(bounds, values, default, links: torch.Tensor, draws, role: str, log
 def motion_start(config: EnvConfig, links: torch.Tensor, draws) -> torch.Tensor:
     """The stationary start ``[m, MOTION_WIDTH]`` float64 of ``env.motion`` for distinct ``links``
     (:func:`waterair.physics.motion.motion_start`), from ``draws``' uniforms for its role, made standard normal."""
-    uniform = draws.uniform("motion", 2 * MOTION_WIDTH, links.numel())
-    radius, angle = torch.sqrt(-2.0 * torch.log(uniform[:, 0::2])), 2.0 * math.pi * uniform[:, 1::2]
-    return start_motion(config.motion, radius * torch.cos(angle))
+    return start_motion(config.motion, box_muller(draws.uniform("motion", MOTION_WIDTH, links.numel())))
 
 
 def motion_normals(keys: torch.Tensor, sensed: SensorNoise | None, generator: torch.Generator, dtype, device):
@@ -143,6 +141,6 @@ def motion_normals(keys: torch.Tensor, sensed: SensorNoise | None, generator: to
     nonce of their own from ``generator``, the rows' keys salted with the motion's role)."""
     motion = normals(keys ^ ROLES["motion"], draw_nonce(generator), MOTION_WIDTH).to(device=device, dtype=dtype)
     if sensed is None:
-        zero = torch.zeros_like(motion[:, 0])
-        sensed = SensorNoise(zero, zero, motion[:, :2] * 0.0, motion[:, :2] * 0.0)
+        zero, pair = torch.zeros_like(motion[:, 0]), torch.zeros_like(motion[:, :2])
+        sensed = SensorNoise(zero, zero, pair, pair)
     return sensed._replace(motion=motion)

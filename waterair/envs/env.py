@@ -22,6 +22,7 @@ from waterair.envs.sensors import Sensor, SensorSettings
 from waterair.envs.specs import make_specs
 from waterair.envs.state import Measurement, StepState
 from waterair.envs.stepper import Stepper
+from waterair.physics.motion import attitudes
 from waterair.physics.paths import flat_sea_point, solve_path
 from waterair.physics.surface import WaveSurface
 
@@ -312,9 +313,8 @@ class WaterAirEnv(EnvBase):
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)
         seas = self.surface[rows]
         at_rest = StepState.zeros(seas.harmonics, prepared, config.history_length, self.sensor.longest_latency)
-        world = None
         if config.motion.moves:  # the motion's start, and the ends where it has them at t = 0
-            at_rest, world = self._moving(at_rest, (distinct, copy, source), tx, rx)
+            at_rest = self._moving(at_rest, (distinct, copy, source), tx, rx)
             tx, rx, flat = at_rest.tx_position, at_rest.rx_position, at_rest.flat_point
         links = replace(
             at_rest,
@@ -340,6 +340,7 @@ class WaterAirEnv(EnvBase):
             compiled=config.compile_kernel,
         )
         noise = self.sensor.draw(self._noise_keys[rows.cpu()], dtype, self.device)
+        world = platforms.through_attitude(links.command, attitudes(links.motion)) if config.motion.moves else None
         started, measurement = kernel.start(constants, links, path, noise, self.stepper.generator, world)
         self.state.write_rows(rows, started)
         for mine, value in zip(self.measurement, measurement, strict=True):
@@ -347,8 +348,7 @@ class WaterAirEnv(EnvBase):
 
     def _moving(self, links: StepState, drawn: tuple, tx: torch.Tensor, rx: torch.Tensor):
         """``links`` at rest with their home at ``tx``, ``rx``, their motion's stationary start drawn (``drawn``: the
-        distinct links, where each row is among them, their draws) and the ends placed where it has them at t = 0;
-        and the tilts ``[n, 4]`` their upright ends point at in the world (their attitude)."""
+        distinct links, where each row is among them, their draws) and the ends placed where it has them at t = 0."""
         distinct, copy, source = drawn
         motion = self.config.motion
         start = draws.motion_start(self.config, distinct, source)[copy.cpu()].to(self.device, tx.dtype)
@@ -356,12 +356,8 @@ class WaterAirEnv(EnvBase):
         home = torch.stack((tx, rx, velocity), dim=1)
         clock = (links.time, self.config.episode_seconds)
         at = platforms.locate(motion, links.sea, home, start, clock, None, self.optics.indices)
-        tx_true, tx_read, rx_true, rx_read = platforms.body_rotations(at.attitude)
-        world = platforms.rotate_tilts(platforms.rotate_tilts(links.command, tx_read, rx_read, inverse=True),
-                                       tx_true, rx_true)  # fmt: skip
-        links = replace(links, home=home, motion=start, known=at.known, tx_position=at.tx_position,
-                        rx_position=at.rx_position, flat_point=at.flat_point)  # fmt: skip
-        return links, world
+        return replace(links, home=home, motion=start, known=at.known, tx_position=at.tx_position,
+                       rx_position=at.rx_position, flat_point=at.flat_point)  # fmt: skip
 
     def _draws(self, distinct: torch.Tensor) -> draws.StreamDraws | draws.KeyedDraws:
         """Where the reset of the ``distinct`` links draws from (``env.draws``); keyed draws count each link's

@@ -97,15 +97,6 @@ def _advance(c: StepConstants, state: StepState, action: torch.Tensor, noise: Se
     )
 
 
-def placed(state: StepState, moved: Moved) -> StepState:
-    """``state`` with its ends where they are after ``moved`` (as it is where they stand still)."""
-    if moved.placed is None:
-        return state
-    at = moved.placed
-    return replace(state, tx_position=at.tx_position, rx_position=at.rx_position, flat_point=at.flat_point,
-                   known=at.known)  # fmt: skip
-
-
 def aimed_tilts(c: StepConstants, actions: Actions, state: StepState, action: torch.Tensor):
     """The tilts ``[B, 2]`` each of the transmitter and the receiver that ``action`` asks for, acting as
     ``actions`` says (:data:`ACTION_MODES`), before the tilt limit."""
@@ -301,7 +292,7 @@ def conclude(
 
 def _conclude(c: StepConstants, state: StepState, moved: Moved, solution: Iterate, noise, light) -> StepResult:
     """:func:`conclude` with ``c`` already for the links."""
-    state = placed(state, moved)
+    state = state.placed(moved)
     tx, rx = state.tx_position, state.rx_position
     path = finish_path(solution, tx, rx, c.optics.indices)
     if light is None:
@@ -360,7 +351,7 @@ def step(c: StepConstants, state: StepState, action: torch.Tensor, noise: Sensor
     """
     links = c.for_links(state.divergence)  # once for the step's two stages
     moved = _advance(links, state, action, noise)
-    return _conclude(links, state, moved, solve(c, placed(state, moved), moved.time), noise, None)
+    return _conclude(links, state, moved, solve(c, state.placed(moved), moved.time), noise, None)
 
 
 def finish(
@@ -372,7 +363,7 @@ def finish(
     For small batches, where a dense pass costs less than gathering the unconverged links; links
     that had converged take no step.
     """
-    more = solve(c, placed(state, moved), moved.time, solution.xy, options)
+    more = solve(c, state.placed(moved), moved.time, solution.xy, options)
     return conclude(c, state, moved, more._replace(iterations=solution.iterations + more.iterations), noise)
 
 

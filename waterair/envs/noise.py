@@ -35,8 +35,13 @@ def draw_nonce(generator: torch.Generator) -> int:
 def normals(keys: torch.Tensor, nonce: int, columns: int) -> torch.Tensor:
     """Standard normal draws ``[n, columns]`` float64 of the streams ``keys`` ``[n]`` at ``nonce``
     (``columns`` even): Box–Muller on uniforms (0, 1) hashed from (key, nonce, column)."""
-    uniform = uniforms(keys ^ nonce, columns)
+    return box_muller(uniforms(keys ^ nonce, columns))
+
+
+def box_muller(uniform: torch.Tensor) -> torch.Tensor:
+    """Standard normals ``[n, columns]`` from uniforms on (0, 1) ``[n, columns]`` (``columns`` even), a pair of each
+    pair."""
     first, second = uniform[:, 0::2], uniform[:, 1::2]
     radius = torch.sqrt(-2.0 * torch.log(first))
     angle = 2.0 * math.pi * second
-    return torch.stack((radius * torch.cos(angle), radius * torch.sin(angle)), dim=-1).reshape(keys.numel(), columns)
+    return torch.stack((radius * torch.cos(angle), radius * torch.sin(angle)), dim=-1).reshape(uniform.shape)

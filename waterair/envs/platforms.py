@@ -68,11 +68,18 @@ def locate(
     rx = known_rx + state[:, :3]
     if near is None:
         flat, known_flat = flat_sea_point(tx, rx, *indices), flat_sea_point(tx_home, known_rx, *indices)
-    else:
+    else:  # the path's calm-sea point moves only in transit
         flat = flat_sea_point_near(tx, rx, near[0], *indices)
-        known_flat = flat_sea_point_near(tx_home, known_rx, near[1], *indices)
+        known_flat = flat_sea_point_near(tx_home, known_rx, near[1], *indices) if motion.kind == "transit" else near[1]
     known = torch.stack((tx_home, known_rx, known_flat), dim=1)
     return Placement(tx, rx, flat, known, attitudes(state), state)
+
+
+def through_attitude(command: torch.Tensor, attitude: torch.Tensor) -> torch.Tensor:
+    """Where ends without actuators point in the world ``[B, 4]`` when commanded to ``command`` ``[B, 4]`` (tilts in
+    the known world frame), through each end's read and true ``attitude`` ``[B, 8]`` (:class:`Placement`'s)."""
+    tx_true, tx_read, rx_true, rx_read = body_rotations(attitude)
+    return rotate_tilts(rotate_tilts(command, tx_read, rx_read, inverse=True), tx_true, rx_true)
 
 
 def body_rotations(attitude: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:

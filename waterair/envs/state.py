@@ -163,16 +163,19 @@ class StepState:
             motion=zeros(MOTION_WIDTH),
         )
 
+    def placed(self, moved: Moved) -> StepState:
+        """This state with its ends where they are after ``moved`` (as it is where they stand still)."""
+        at = moved.placed
+        if at is None:
+            return self
+        return replace(self, tx_position=at.tx_position, rx_position=at.rx_position, flat_point=at.flat_point,
+                       known=at.known, motion=at.motion)  # fmt: skip
+
     def after(self, moved: Moved, **changes: torch.Tensor) -> StepState:
-        """This state with the gimbals and the clock ``moved`` (and the ends, where they move) and the entries
-        ``changes`` replaced."""
-        if moved.placed is not None:
-            placed = moved.placed
-            changes = dict(tx_position=placed.tx_position, rx_position=placed.rx_position,
-                           flat_point=placed.flat_point, known=placed.known, motion=placed.motion,
-                           **changes)  # fmt: skip
+        """This state with the gimbals and the clock ``moved`` (and the ends, where they move: :meth:`placed`) and
+        the entries ``changes`` replaced."""
         return replace(
-            self,
+            self.placed(moved),
             tx_tilt=moved.tx_tilt,
             rx_tilt=moved.rx_tilt,
             command=moved.command,

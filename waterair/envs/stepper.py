@@ -115,7 +115,7 @@ class Stepper:
             result = self._step(self.traced, state, action, noise)
         else:  # the same stages, the solve or the light eager
             moved = kernel.advance(self.constants, state, action, noise)
-            at = kernel.placed(state, moved)  # the ends where they are at the step (where they move)
+            at = state.placed(moved)  # the ends where they are at the step (where they move)
             solution = self._solve(surface, at, moved)
             light = None if self._light is None else self._light(at, moved, solution)
             result = self._conclude(self.traced, state, moved, solution, noise, light)
@@ -160,7 +160,7 @@ class Stepper:
         adaptive solver.
         """
         c, moved = self.constants, result.moved
-        at = kernel.placed(state, moved)  # where the step's ends are, for the adaptive solve
+        at = state.placed(moved)  # where the step's ends are, for the adaptive solve
         if self.compile_kernel and state.time.shape[0] <= DENSE_FINISH_BATCH:
             result = self._finish(self.traced, state, moved, result.solution, noise, self.finishing)
             if bool(result.solution.converged.all()):
