@@ -285,8 +285,9 @@ def reference() -> str:
 
 def training_reference() -> str:
     """docs/reference/training.md: train.py's keys (but the env group's), each with what train.py composes and what
-    each agent, noise and buffer option and the paper preset set it to where that differs."""
-    variants = [f"{group}={path.stem}" for group in ("agent", "noise", "buffer")
+    each agent, noise, buffer, receiver and background option and the paper preset set it to where that differs."""
+    groups = ("agent", "noise", "buffer", "link/receiver", "link/background")
+    variants = [f"{group}={path.stem}" for group in groups
                 for path in sorted((CONF_DIR / group).glob("*.yaml"))] + ["+experiment=paper"]  # fmt: skip
     base = _composed("config", [], node=None)
     intro = (
