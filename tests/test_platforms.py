@@ -118,6 +118,25 @@ def test_the_vehicle_moves_with_the_water_s_orbital_motion_times_its_response_an
     assert torch.allclose(td["flat_point"], flat_sea_point(home[:, 0], path), rtol=0, atol=1e-9)
 
 
+def test_a_transit_passes_home_at_its_crossing_time_and_a_parked_drone_stands_still_on_the_crossing_s_stretch():
+    crossing = {"transit_speed": 1.2, "transit_heading_deg": 30.0, "crossing_time": 0.15}
+    transit, parked = (WaterAirEnv(EnvConfig(**SMALL, motion={"kind": k, **crossing})) for k in ("transit", "parked"))
+    td, still = transit.reset(), parked.reset()
+    home, spot = transit.state.home[:, 1].clone(), parked.state.home[:, 1].clone()
+    heading = math.radians(30.0)
+    direction = torch.tensor([math.cos(heading), math.sin(heading), 0.0], dtype=F64)
+    along = (spot - home) @ direction
+    assert torch.allclose(spot - home, along.unsqueeze(-1) * direction, rtol=0, atol=1e-12)  # on the path
+    assert along.abs().max() <= 1.2 * 0.15 and along.unique().numel() == 4  # within its stretch, a spot per link
+    assert torch.equal(parked.state.home[:, 2], torch.zeros_like(spot))  # and standing there
+    for _ in range(3):
+        td = transit.step(td.set("action", torch.zeros(4, 4, dtype=F64)))["next"]
+        still = parked.step(still.set("action", torch.zeros(4, 4, dtype=F64)))["next"]
+        assert torch.allclose(still["rx_position"], spot, rtol=0, atol=1e-12)
+    assert transit.state.time[0].item() == pytest.approx(0.15)
+    assert torch.allclose(td["rx_position"], home, rtol=0, atol=1e-12)  # over home at 0.15 s
+
+
 def test_a_link_s_motion_is_keyed_to_it_and_its_replicas_share_it():
     config = dict(SMALL, num_envs=8, replicas=2, motion={"kind": "hover"})
     env = WaterAirEnv(EnvConfig(**config))

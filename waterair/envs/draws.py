@@ -36,6 +36,7 @@ ROLES = {
     "offset_azimuth": 6,
     "divergence": 7,
     "motion": 8,
+    "parking": 9,
 }
 """Each keyed draw's role, a part of its key: a link's draws for two roles are independent."""
 
@@ -133,6 +134,12 @@ def motion_start(config: EnvConfig, links: torch.Tensor, draws) -> torch.Tensor:
     """The stationary start ``[m, MOTION_WIDTH]`` float64 of ``env.motion`` for distinct ``links``
     (:func:`waterair.physics.motion.motion_start`), from ``draws``' uniforms for its role, made standard normal."""
     return start_motion(config.motion, box_muller(draws.uniform("motion", MOTION_WIDTH, links.numel())))
+
+
+def parking(draws, links: torch.Tensor) -> torch.Tensor:
+    """Where on its crossing a ``parked`` drone stands, for distinct ``links``: a uniform ``[m]`` float64 in (0, 1)
+    of the crossing's stretch (``env.motion``, :class:`~waterair.physics.motion.Motion`), from ``draws``."""
+    return draws.uniform("parking", 1, links.numel())[:, 0]
 
 
 def motion_normals(keys: torch.Tensor, sensed: SensorNoise | None, generator: torch.Generator, dtype, device):

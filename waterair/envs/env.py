@@ -353,6 +353,10 @@ class WaterAirEnv(EnvBase):
         motion = self.config.motion
         start = draws.motion_start(self.config, distinct, source)[copy.cpu()].to(self.device, tx.dtype)
         velocity = motion.velocity(tx.dtype).to(self.device).expand_as(tx)
+        if motion.kind == "parked":  # still, at a point of the crossing drawn per link
+            stretch = 2.0 * motion.crossing(self.config.episode_seconds)
+            at = (draws.parking(source, distinct)[copy.cpu()].to(self.device, tx.dtype) - 0.5) * stretch
+            rx = rx + at.unsqueeze(-1) * motion.velocity(tx.dtype, parked=True).to(self.device)
         home = torch.stack((tx, rx, velocity), dim=1)
         clock = (links.time, self.config.episode_seconds)
         at = platforms.locate(motion, links.sea, home, start, clock, None, self.optics.indices)

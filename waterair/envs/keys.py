@@ -73,7 +73,8 @@ KEYS: dict[str, tuple[str, str]] = {
     "motion.kind": (
         "–",
         "static (both ends still), hover (the drone holding station, the vehicle in the sea's orbital motion), "
-        "transit (hover, the drone crossing the link); docs/model.md §12",
+        "transit (hover, the drone crossing the link), parked (hover, at a point of the crossing drawn per link); "
+        "docs/model.md §12",
     ),
     "motion.drift_horizontal": (
         "m",
@@ -97,6 +98,11 @@ KEYS: dict[str, tuple[str, str]] = {
         "receiver)",
     ),
     "motion.transit_heading_deg": ("deg", "[-360, 360]: its heading from +x"),
+    "motion.crossing_time": (
+        "s",
+        "null or [0, 1e6]: when the transit passes over home (null: the episode's middle); `parked`: the drone "
+        "stands where the transit is at a time drawn uniformly in [0, 2 × this]",
+    ),
     "channel.name": (
         "–",
         'chosen with `env/channel=full\\|single_path\\|montecarlo\\|counting` (docs/environment.md, "Channel"); '

@@ -63,7 +63,7 @@ def locate(
     ``near`` (true, known; None: solved afresh, as at a reset)."""
     time, episode = clock
     tx_home, rx_home, velocity = home.unbind(1)
-    known_rx = rx_home + velocity * (time - 0.5 * episode).unsqueeze(-1).to(home.dtype)
+    known_rx = rx_home + velocity * (time - motion.crossing(episode)).unsqueeze(-1).to(home.dtype)
     tx = tx_home + orbital_motion(sea, tx_home, time, motion.vehicle_response).displacement
     rx = known_rx + state[:, :3]
     if near is None:

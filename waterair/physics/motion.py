@@ -130,9 +130,10 @@ class Oscillator:
         return phi, torch.linalg.cholesky(0.5 * (added + added.T))
 
 
-MOTIONS = ("static", "hover", "transit")
+MOTIONS = ("static", "hover", "transit", "parked")
 """How the ends move (``env.motion.kind``): not at all; the drone hovering and the vehicle in the sea's orbital
-motion; the same with the drone crossing the link at a constant velocity."""
+motion; the same with the drone crossing the link at a constant velocity; or hovering still at a point of that
+crossing drawn per link (the crossing's geometry without its motion: what a transit is compared with)."""
 MOTION_WIDTH = 18
 """A motion state's columns (:func:`motion_start`): the seven oscillators' values (the drift's x, y, z (m), the
 vehicle's roll and pitch, the drone's (rad)), then their rates, then the four inertial errors (the vehicle's roll
@@ -153,7 +154,8 @@ class Motion:
         attitude_damping: both ends' attitude loops' damping.
         imu_error, imu_time: each end's inertial sensor's roll and pitch error, σ (rad), and its time constant (s).
         transit_speed, transit_heading_deg: ``transit``: the drone's ground speed (m/s) and heading (deg from +x);
-            its path crosses its home position at the episode's middle.
+            its path crosses its home position at ``crossing_time`` (s; None: the episode's middle). ``parked``: the
+            drone hovers at the point of that path at a time drawn uniformly over [0, 2 × the crossing's].
     """
 
     kind: str = "static"
@@ -171,6 +173,7 @@ class Motion:
     imu_time: float = 100.0
     transit_speed: float = 1.5
     transit_heading_deg: float = 0.0
+    crossing_time: float | None = None
 
     def __post_init__(self) -> None:
         check_choice("kind", self.kind, MOTIONS)
@@ -184,6 +187,8 @@ class Motion:
         for name in ("drift_damping", "attitude_damping"):
             check_range(name, getattr(self, name), 0.0, 10.0, low_open=True)
         check_range("transit_heading_deg", self.transit_heading_deg, -360.0, 360.0, unit="deg")
+        if self.crossing_time is not None:
+            check_range("crossing_time", self.crossing_time, 0.0, 1.0e6, unit="s")
 
     @property
     def moves(self) -> bool:
@@ -207,11 +212,17 @@ class Motion:
         lower = tuple(zip(*(low.flatten().tolist() for _, low in rows), strict=True))
         return phi, lower
 
-    def velocity(self, dtype: torch.dtype = torch.float64) -> torch.Tensor:
-        """The drone's transit velocity ``[3]`` (m/s): zero but for ``transit``."""
-        speed = self.transit_speed if self.kind == "transit" else 0.0
+    def velocity(self, dtype: torch.dtype = torch.float64, parked: bool = False) -> torch.Tensor:
+        """The drone's transit velocity ``[3]`` (m/s): zero but for ``transit`` (with ``parked``: also the velocity
+        of the path a ``parked`` drone stands on)."""
+        moving = self.kind == "transit" or (parked and self.kind == "parked")
+        speed = self.transit_speed if moving else 0.0
         heading = math.radians(self.transit_heading_deg)
         return torch.tensor([speed * math.cos(heading), speed * math.sin(heading), 0.0], dtype=dtype)
+
+    def crossing(self, episode: float) -> float:
+        """When (s) the transit's path passes over the drone's home, in an episode of ``episode`` s."""
+        return 0.5 * episode if self.crossing_time is None else self.crossing_time
 
 
 def motion_start(motion: Motion, normals: torch.Tensor) -> torch.Tensor:
