@@ -7,6 +7,7 @@ import torch
 
 from waterair.evaluation.comparisons import COMPARISON_KEYS, HOLDS_NOTHING, comparison_rows
 from waterair.evaluation.metrics import scenario_metrics
+from waterair.evaluation.scenarios import SETTING_COLUMNS
 from waterair.physics.link import LinkBudget
 
 POLICIES = [{"label": "learned", "kind": "learned", "base": "base"}, {"label": "base", "kind": "baseline"}]
@@ -31,7 +32,8 @@ def _compare(runs: dict) -> dict:
         held[label] = scenario_metrics(*traces, link=LinkBudget(), resamples=10)["rate_held"]
     (row,) = comparison_rows(POLICIES, runs, 0, {"scenario": "S5"}, held, LinkBudget(), BOOTSTRAP)
     assert (row["rate_held"], row["base_rate_held"]) == (held["learned"], held["base"])
-    assert set(row) >= set(COMPARISON_KEYS) - {"wind", "offset_ratio", "offset_azimuth_deg", "divergence"}
+    where = {"wind", "offset_ratio", "offset_azimuth_deg", "divergence", *SETTING_COLUMNS}  # the caller's: not given
+    assert set(row) >= set(COMPARISON_KEYS) - where
     return row
 
 

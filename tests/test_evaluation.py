@@ -141,11 +141,12 @@ def test_sensing_decides_whose_sensor_a_learned_policy_and_its_controllers_use(t
     ((_, config, _),) = trained.learned
     assert config.latency_steps == 1 and config.intensity_noise == 0.05 and trained.env.latency_steps == 0
     late = [
-        f"{name} (1-step latency, noisy, saturating)" for name in ("beacon_tracker", "aoa_tracker", "intensity_dither")
+        f"{name} (1-step latency, noisy, saturating)"
+        for name in ("beacon_tracker", "kalman_tracker", "aoa_tracker", "intensity_dither")
     ]
     # the controllers with the policy's sensing are replicas of the baselines' group that sense their own way
     (config, members), (_, [(label, _)]) = trained.groups
-    assert [name for name, _ in members][-3:] == late and label == trained.policies[0].label
+    assert [name for name, _ in members][-4:] == late and label == trained.policies[0].label
     assert latencies(trained.groups) == {name: int(name in late or name == label) for name in latencies(trained.groups)}
     assert config.latency_steps == 0 and config.replica_configs()[-1].intensity_saturation == 4.0
     scenario = prepare(eval_cfg(f"run={tiny_run}", "sensing=scenario"))
@@ -163,15 +164,16 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert {p.name for p in written} >= {"metrics.json", "metrics.csv", "report.md"}
 
     data = json.loads((tmp_path / "metrics.json").read_text())
-    assert data["schema_version"] == 7
+    assert data["schema_version"] == 8
     assert data["link"]["power_w"] == 0.05 and data["link"]["fec_power"] == pytest.approx(3.16e-8, rel=0.01)
     labels = [p["label"] for p in data["policies"]]
-    references = ["tracking", "beacon_tracker", "aoa_tracker", "intensity_dither", "flat_snell", "straight_facing"]
-    references.append("no_alignment")
+    references = ["tracking", "beacon_tracker", "kalman_tracker", "aoa_tracker", "intensity_dither", "flat_snell"]
+    references += ["straight_facing", "no_alignment"]
     # the run trained with the realistic sensor (train.py's default): the classical controllers also
     # run with its sensing, beside it, while the scenario's sensor stays ideal for the references
     realistic = [
-        f"{name} (1-step latency, noisy, saturating)" for name in ("beacon_tracker", "aoa_tracker", "intensity_dither")
+        f"{name} (1-step latency, noisy, saturating)"
+        for name in ("beacon_tracker", "kalman_tracker", "aoa_tracker", "intensity_dither")
     ]
     assert labels[0] == "upper_bound" and labels[2:] == references + realistic
     assert data["policies"][1]["kind"] == "learned" and data["policies"][1]["frames"] == 800
@@ -362,7 +364,7 @@ def test_every_policy_sees_the_same_seas_and_stays_under_the_upper_bound(tiny_ru
     spot = write_policy(tmp_path / "spot.pt", observation_size=10, extras=("spot",))
     result = evaluate(eval_cfg(f"run={tiny_run}", f"checkpoint={spot}"), progress=lambda _: None)
     kinds = [p["kind"] for p in result.policies]
-    assert kinds == ["bound", "learned", "learned"] + ["baseline"] * (7 + 3)  # + the controllers with the run's sensing
+    assert kinds == ["bound", "learned", "learned"] + ["baseline"] * (8 + 4)  # + the controllers with the run's sensing
     for scenario, traces in result.traces.items():
         # clamping only raises a bound: the search's own is the least over the policies
         searched_bound = torch.stack([trace["gain_upper_bound"] for trace in traces.values()]).amin(0)
@@ -395,12 +397,12 @@ def test_one_batch_for_all_policies_gives_the_same_numbers_as_one_rollout_each(t
         for together in (True, False)
     ]
     # its processes, then one progress line per rollout, each with its own duration: S1 and S2 × one batch (the
-    # baselines, the controllers and the policy, which reads its own columns of their observation), or × 8
+    # baselines, the controllers and the policy, which reads its own columns of their observation), or × 9
     # policies one at a time
     assert all(lines[together].pop(0).startswith("Evaluating in 1 process of ") for together in lines)
-    assert len(lines[True]) == 2 * 1 and len(lines[False]) == 2 * 8
+    assert len(lines[True]) == 2 * 1 and len(lines[False]) == 2 * 9
     assert all(re.search(r": .+ in \d+ s \(eager\)$", line) for line in lines[True] + lines[False]), lines
-    assert len(results[0].rows) == len(results[1].rows) == (1 + 2) * 9
+    assert len(results[0].rows) == len(results[1].rows) == (1 + 2) * 10
     for batched, alone in zip(results[0].rows, results[1].rows, strict=True):
         assert batched["policy"] == alone["policy"]
         for name in METRICS:
@@ -414,7 +416,7 @@ def test_the_controllers_with_a_policys_sensor_score_beside_the_baselines_as_alo
     skip = ("scenarios.S2=null", "scenarios.S3=null", "scenarios.S4=null")
     runs = [evaluate(eval_cfg(f"run={tiny_run}", f"batch_policies={together}", *skip)) for together in (True, False)]
     sensed = [row["policy"] for row in runs[0].rows if "1-step latency" in row["policy"]]
-    assert len(sensed) == 3 and len(runs[0].rows) == len(runs[1].rows)
+    assert len(sensed) == 4 and len(runs[0].rows) == len(runs[1].rows)
     for batched, alone in zip(runs[0].rows, runs[1].rows, strict=True):
         assert batched["policy"] == alone["policy"]
         for name in METRICS:
@@ -603,8 +605,8 @@ def test_learned_policies_that_observe_and_act_otherwise_join_the_groups_of_thei
     assert labels[-3:] == ["ppo default", "ppo intensity", "ddpg paper"] and config.frames == 2
     late = {label for label, replica in zip(labels, config.replica_configs(), strict=True) if replica.latency_steps}
     assert late == {"ppo default", "ppo intensity", *(label for label in labels if "1-step latency" in label)}
-    assert config.latency_steps == 0 and len(late) == 5
-    assert [dict(a).get("action_mode") for a in config.replica_actions] == [None] * 10 + ["residual"] * 2 + [None]
+    assert config.latency_steps == 0 and len(late) == 6
+    assert [dict(a).get("action_mode") for a in config.replica_actions] == [None] * 12 + ["residual"] * 2 + [None]
     points = [(12.0, 0.1, 0.0), (20.0, 0.3, 45.0)]
     together = {}
     for config, members in plan.groups:

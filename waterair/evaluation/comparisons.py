@@ -12,11 +12,13 @@ import math
 from waterair.envs.controllers import CONTROLLERS
 from waterair.evaluation.metrics import COMPARED, paired_comparison, verdict
 from waterair.evaluation.rollouts import Sensed, reference_name
+from waterair.evaluation.scenarios import SETTING_COLUMNS
 
 TRACES = ("gain", "gain_upper_bound", "reference_gain", "path_valid")
 """What a comparison reads of each policy's traces ``[R, P, T]``."""
-WHERE = ("scenario", "wind", "offset_ratio", "offset_azimuth_deg", "divergence")
-"""What names a point of an evaluation: its scenario, its coordinates and the beam divergence (rad)."""
+WHERE = ("scenario", "wind", "offset_ratio", "offset_azimuth_deg", "divergence", *SETTING_COLUMNS)
+"""What names a point of an evaluation: its scenario, its coordinates, the beam divergence (rad) and S6's or S7's
+setting of the ends (:data:`~waterair.evaluation.scenarios.SETTING_COLUMNS`)."""
 COMPARISON_KEYS = (
     *WHERE,
     "policy",

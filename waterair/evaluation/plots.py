@@ -8,6 +8,7 @@ outside the data.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import matplotlib
@@ -73,6 +74,10 @@ def evaluation_figures(result, out: Path) -> list[Path]:
         written += [rate_vs_divergence(result, w, out / f"rate_vs_divergence_{w:g}ms.png") for w in winds]
         if result.power_rows:
             written.append(outage_vs_power(result, out / "outage_vs_power.png"))
+    if "S6" in names:
+        written.append(rate_vs_speed(result, out / "rate_vs_speed.png"))
+    if "S7" in names:
+        written.append(rate_vs_period(result, out / "rate_vs_period.png"))
     return written
 
 
@@ -259,6 +264,79 @@ def outage_vs_power(result, path: Path) -> Path:
     axes[0, 0].set_ylabel("outage probability P(BER > FEC limit)")
     fig.suptitle(f"S5: outage against transmit power, U10 = {sweep.wind:g} m/s, ω_D = {sweep.divergence * 1e3:g} mrad\n"
                  "(a floor that more power cannot lift is light that never arrives)")  # fmt: skip
+    return _save_with_legend(fig, axes[0, 0], path)
+
+
+def rate_vs_speed(result, path: Path) -> Path:
+    """S6: the rate held 99 % of the time against the drone's speed across the link (top; faint: parked on the
+    same crossing) and against its attitude jitter hovering (bottom), one column per wind, with intervals."""
+    scenario = _scenario(result, "S6")
+    winds = [w for w, _, _ in scenario.points]
+    fig, axes = plt.subplots(2, len(winds), figsize=(max(5.2 * len(winds), 10.0), 7.5), squeeze=False)
+    attitude = max(scenario.settings, key=lambda s: s.speed).attitude  # the speeds' attitude (the fastest's)
+    for column, wind in enumerate(winds):
+        rows = [r for r in result.rows if r["scenario"] == "S6" and r["wind"] == wind]
+        for policy in result.policies:
+            mine = [r for r in rows if r["policy"] == policy["label"]]
+            colour, marker, style, width = _style(result, policy)
+            kw = dict(color=colour, marker=marker, linestyle=style, linewidth=width)
+            along = sorted((r for r in mine if _at_attitude(r, attitude)), key=lambda r: r["drone_speed"])
+            moving = [r for r in along if not r["parked"] or r["drone_speed"] == 0]
+            parked = [r for r in along if r["parked"] or r["drone_speed"] == 0]
+            for ax, part, x, extra in ((axes[0, column], moving, "drone_speed", {"label": policy["label"]}),
+                                       (axes[0, column], parked, "drone_speed", {"alpha": 0.3}),
+                                       (axes[1, column], sorted((r for r in mine if r["drone_speed"] == 0),
+                                                               key=lambda r: r["drone_attitude_deg"]),
+                                        "drone_attitude_deg", {})):  # fmt: skip
+                xs = [r[x] for r in part]
+                ax.plot(xs, [r["rate_held"] / 1e6 for r in part], **kw, **extra)
+                if not extra.get("alpha"):
+                    ax.fill_between(xs, [r["rate_held_lo"] / 1e6 for r in part],
+                                    [r["rate_held_hi"] / 1e6 for r in part], color=colour, alpha=0.08)  # fmt: skip
+        axes[0, column].set_title(f"U10 = {wind:g} m/s", fontsize=10)
+        axes[0, column].set_xlabel("drone speed across the link (m/s)")
+        axes[1, column].set_xlabel("σ of the drone's roll and pitch, hovering (deg)")
+    axes[0, 0].set_ylabel("bit rate held 99 %\nof the time (Mbit/s)")
+    axes[1, 0].set_ylabel("bit rate held 99 %\nof the time (Mbit/s)")
+    for ax in axes.flat:
+        ax.grid(alpha=0.3)
+    link = result.link_of("S6", scenario.divergences[0])
+    fig.suptitle(f"{scenario.title} ({link.power_w * 1e3:g} mW)\nfaint: parked on the same crossing; "
+                 f"{scenario.realisations} realisations × {scenario.steps * result.dt:g} s")  # fmt: skip
+    return _save_with_legend(fig, axes[0, 0], path)
+
+
+def _at_attitude(row: dict, attitude: float | None) -> bool:
+    return attitude is None or abs(row["drone_attitude_deg"] - math.degrees(attitude)) < 1e-9
+
+
+def rate_vs_period(result, path: Path) -> Path:
+    """S7: the rate held 99 % of the time against the loop period, one panel per actuator, with intervals."""
+    scenario = _scenario(result, "S7")
+    rows = [r for r in result.rows if r["scenario"] == "S7"]
+    actuators = list(dict.fromkeys(r["actuator"] for r in rows))
+    fig, axes = plt.subplots(1, len(actuators), figsize=(max(4.2 * len(actuators), 10.0), 5.2), squeeze=False,
+                             sharey=True)  # fmt: skip
+    for column, actuator in enumerate(actuators):
+        ax = axes[0, column]
+        for policy in result.policies:
+            mine = sorted((r for r in rows if r["policy"] == policy["label"] and r["actuator"] == actuator),
+                          key=lambda r: r["dt"])  # fmt: skip
+            xs = [r["dt"] * 1e3 for r in mine]
+            colour, marker, style, width = _style(result, policy)
+            ax.plot(xs, [r["rate_held"] / 1e6 for r in mine], color=colour, marker=marker, linestyle=style,
+                    linewidth=width, label=policy["label"])  # fmt: skip
+            ax.fill_between(xs, [r["rate_held_lo"] / 1e6 for r in mine], [r["rate_held_hi"] / 1e6 for r in mine],
+                            color=colour, alpha=0.08)  # fmt: skip
+        ax.set_xscale("log")
+        ax.set_xticks(xs, [f"{v:g}" for v in xs])
+        ax.minorticks_off()
+        ax.set_title(actuator, fontsize=10)
+        ax.set_xlabel("loop period env.dt (ms)")
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel("bit rate held 99 %\nof the time (Mbit/s)")
+    seconds = scenario.settings[0].steps * scenario.settings[0].dt
+    fig.suptitle(f"{scenario.title}\n{scenario.realisations} realisations × {seconds:g} s")
     return _save_with_legend(fig, axes[0, 0], path)
 
 

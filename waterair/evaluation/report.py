@@ -15,14 +15,17 @@ from waterair.evaluation.divergence import best_divergences, learned_gains
 from waterair.evaluation.figures import physics_figures
 from waterair.evaluation.metrics import ACQUISITION_SECONDS, HELD, METRICS, PHASE_METRICS
 from waterair.evaluation.runner import UPPER_BOUND, Evaluation
+from waterair.evaluation.scenarios import setting_label
 from waterair.physics.link import fec_power
 
-SCHEMA_VERSION = 7
-"""6: ``rate_held`` and ``rate_held_999`` with their bounds, per row and per phase, and ``comparisons``, each learned
-policy against its classical base at every point; 5: ``rate_held_999`` and the acquisition's and the tracking's
-metrics apart (``acquisition_<name>``, ``tracking_<name>``) per row; 4: ``divergence``, ``received_power_dbm`` and
-``rate_held`` per row, S5 and its ``power_sweep``; 3: the link budget's ``ber``, ``outage`` and ``rate`` per row,
-``link`` at the top; 2's ``outage`` (P(G < 0.1 G_0)) is ``fade_10db``."""
+SCHEMA_VERSION = 8
+"""8: the setting of the ends per row (``drone_speed``, ``drone_attitude_deg``, ``parked``, ``dt``, ``actuator``;
+None but in S6 and S7, which are new) and S6's and S7's ``settings``; 6: ``rate_held`` and ``rate_held_999`` with
+their bounds, per row and per phase, and ``comparisons``, each learned policy against its classical base at every
+point; 5: ``rate_held_999`` and the acquisition's and the tracking's metrics apart (``acquisition_<name>``,
+``tracking_<name>``) per row; 4: ``divergence``, ``received_power_dbm`` and ``rate_held`` per row, S5 and its
+``power_sweep``; 3: the link budget's ``ber``, ``outage`` and ``rate`` per row, ``link`` at the top; 2's ``outage``
+(P(G < 0.1 G_0)) is ``fade_10db``."""
 AXES = ("wind", "offset_ratio", "offset_azimuth_deg")
 """The three coordinates of a scenario point, in order."""
 ROW_KEYS = (
@@ -94,6 +97,9 @@ def _study(result: Evaluation, scenario) -> dict:
     """S5's own keys in metrics.json: divergences (rad), the link keys it replaces and its power sweep."""
     if not scenario.divergences:
         return {}
+    if scenario.settings:
+        settings = [setting.columns(result.env) | {"steps": setting.steps} for setting in scenario.settings]
+        return {"divergences": list(scenario.divergences), "link": dict(scenario.link), "settings": settings}
     sweep = scenario.power_sweep
     return {
         "divergences": list(scenario.divergences),
@@ -149,12 +155,18 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
     for scenario in result.scenarios:
         lines += [f"## {scenario.title}", ""]
         seconds = scenario.steps * result.dt
+        length = f"{scenario.steps} steps ({seconds:g} s)"
+        if scenario.settings:  # S7's settings step at periods of their own
+            setting = scenario.settings[0]
+            length = f"{setting.steps * (setting.dt or result.dt):g} s at every setting"
         lines += [
-            f"{scenario.realisations} sea realisations × {scenario.steps} steps ({seconds:g} s), "
-            f"seed {scenario.seed}; every policy on the same seas.",
+            f"{scenario.realisations} sea realisations × {length}, seed {scenario.seed}; every policy on the same "
+            "seas.",
             "",
         ]
-        if scenario.divergences:
+        if scenario.settings:
+            lines += _setting_lines(result, scenario)
+        elif scenario.divergences:
             lines += _divergence_lines(result, scenario)
         elif scenario.axis is None:
             point = scenario.points[0]
@@ -281,6 +293,30 @@ def _divergence_lines(result: Evaluation, scenario) -> list[str]:
     return [*lines, ""]
 
 
+def _setting_lines(result: Evaluation, scenario) -> list[str]:
+    """S6 or S7: the rate held 99 % of the time (Mbit/s, with its interval) of every policy at each setting, a
+    table per point and actuator."""
+    period = scenario.name == "S7"
+    link = _link_line(result.link_of(scenario.name, scenario.divergences[0]))
+    lines = [f"Each setting of the ends is a batch of its own ({link}); the rate held in 99 % of steps (Mbit/s), "
+             "with its 95 % interval:", ""]  # fmt: skip
+    rows = [r for r in result.rows if r["scenario"] == scenario.name]
+    for point in scenario.points:
+        for actuator in dict.fromkeys(r["actuator"] for r in rows):
+            mine = [r for r in rows if _point(r) == point and r["actuator"] == actuator]
+            named = [(setting_label(r, period).removeprefix(f"{actuator}, "), r) for r in mine]
+            settings = list(dict.fromkeys(name for name, _ in named))
+            held = {(name, r["policy"]): _held(r) for name, r in named}
+            lines += [f"U10 = {point[0]:g} m/s, offset {point[1]:.0%}, {actuator}:", ""]
+            table = [(p["label"], *(held.get((name, p["label"]), "") for name in settings)) for p in result.policies]
+            lines += [*_table(("policy", *settings), table), ""]
+    return lines
+
+
+def _point(row: dict) -> tuple:
+    return row["wind"], row["offset_ratio"], row["offset_azimuth_deg"]
+
+
 def _held(row: dict, name: str = "rate_held") -> str:
     """A held rate in Mbit/s with its interval."""
     return f"{row[name] / 1e6:.3g} [{row[f'{name}_lo'] / 1e6:.3g}, {row[f'{name}_hi'] / 1e6:.3g}]"
@@ -305,6 +341,8 @@ def _comparison_lines(result: Evaluation) -> list[str]:
         point = f"{c['wind']:g} m/s, {c['offset_ratio']:.0%}" + (
             f", {c['divergence'] * 1e3:g} mrad" if result.scenario(c["scenario"]).divergences else ""
         )
+        if c["actuator"] is not None:  # S6, S7: at a setting of the ends
+            point += f", {setting_label(c, period=c['scenario'] == 'S7')}"
         rows.append((c["scenario"], point, c["policy"], c["base"],
                      f"{c['ratio_to_ub_diff']:+.4f} [{c['ratio_to_ub_diff_lo']:+.4f}, {c['ratio_to_ub_diff_hi']:+.4f}]",
                      _held_ratio(c),

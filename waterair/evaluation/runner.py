@@ -42,7 +42,7 @@ from waterair.evaluation.policies import (
     trained_on,
 )
 from waterair.evaluation.rollouts import REFERENCES, reference_name, rollout_policies
-from waterair.evaluation.scenarios import Scenario, scenarios_from_config
+from waterair.evaluation.scenarios import SETTING_COLUMNS, Scenario, Setting, scenarios_from_config
 from waterair.evaluation.workers import Batch, choose_workers, run_batches
 from waterair.physics.link import LinkBudget
 
@@ -152,6 +152,7 @@ class EvaluationPlan:
     workers: int = 1  # processes running the batches (``workers``, :mod:`waterair.evaluation.workers`)
     threads: int = 1  # torch threads in each of them, where there are several
     processes: str = "1 process"  # a line saying how many of each and why
+    compile_auto: bool = False  # env.compile_kernel: auto (S6's and S7's settings then run eager)
 
 
 SCENARIO_SETS = {
@@ -204,22 +205,26 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
         learned.append((policy, env_config, policy.actor(cfg.actor, env_config.observation_size).to(device)))
     for scenario in scenarios:
         for policy, env_config, _ in [(None, base, None), *learned]:
-            if scenario.steps > env_config.max_steps:
-                owner = f"{policy.label}'s" if policy else "the scenario's"
-                raise ValueError(
-                    f"scenarios.{scenario.name}.steps = {scenario.steps} is out of range; allowed [1, "
-                    f"{env_config.max_steps}] ({owner} env.max_steps: a longer rollout would restart the seas)"
-                )
+            for setting in scenario.settings or (None,):  # a setting's env is checked here too, before any rollout
+                config = setting.applied(env_config) if setting else env_config
+                steps = setting.steps if setting else scenario.steps
+                if steps > config.max_steps:
+                    owner = f"{policy.label}'s" if policy else "the scenario's"
+                    raise ValueError(
+                        f"scenarios.{scenario.name}.steps = {steps} is out of range; allowed [1, "
+                        f"{config.max_steps}] ({owner} env.max_steps: a longer rollout would restart the seas)"
+                    )
     together = bool(cfg.get("batch_policies", True))
     groups = policy_groups(base, baselines, learned, together)
     if compile_kernel == "auto":  # each group compiles when its own frames repay its graphs (evaluation/compiling.py)
-        per_policy = sum(len(s.points) * s.realisations * s.steps * max(1, len(s.divergences)) for s in scenarios)
+        per_policy = sum(len(s.points) * s.realisations * s.steps * max(1, len(s.divergences))
+                         for s in scenarios if not s.settings)  # fmt: skip
         groups = [(compiled_group(config, len(members) * per_policy)[0], members) for config, members in groups]
     batches = len(_batches_at_divergences(scenarios))
     workers, threads, processes = choose_workers(cfg.get("workers", AUTO), batches, base.device)
     return EvaluationPlan(
         scenarios, bootstrap, base, link, baselines, list(policies), learned, together, groups, links,
-        workers, threads, processes,
+        workers, threads, processes, compile_kernel == "auto",
     )  # fmt: skip
 
 
@@ -262,26 +267,30 @@ def _run(plan: EvaluationPlan, result: Evaluation, progress) -> None:
     """Every scenario batch at each of its divergences, every policy group on it, into ``result``."""
     # Scenarios with the same realisations, steps and seed run as one batch over the union of their
     # points; within it, every group of policies sharing an interface runs as replicas of one env.
+    # S6's and S7's settings each run as a batch of their own, eager where the compile is auto (a step each).
     batches, collected = [], []
-    for scenarios, divergence in _batches_at_divergences(plan.scenarios):
+    for scenarios, divergence, setting in _batches_at_divergences(plan.scenarios):
         points = list(dict.fromkeys(p for s in scenarios for p in s.points))
         first = scenarios[0]
+        steps = setting.steps if setting else first.steps
         at = f" at {divergence * 1e3:g} mrad" if divergence is not None else ""
-        names = "+".join(s.name for s in scenarios)
-        what = f"{names}{at} ({len(points)} points × {first.realisations} seas × {first.steps} steps)"
+        names = "+".join(s.name for s in scenarios) + (f" {setting.name(plan.env)}" if setting else "")
+        what = f"{names}{at} ({len(points)} points × {first.realisations} seas × {steps} steps)"
         groups = [
             (at_divergence(env_config, divergence), members)
             for env_config, members in _acting(plan, divergence or plan.env.optics.divergence)
         ]
-        batches.append(Batch(what, groups, points, first.realisations, first.steps, first.seed))
-        collected.append((scenarios, points, divergence))
-    for runs, (scenarios, points, divergence) in zip(
+        if setting is not None:  # eager where the compile is auto: a step of its own
+            groups = [(setting.applied(config, eager=plan.compile_auto), members) for config, members in groups]
+        batches.append(Batch(what, groups, points, first.realisations, steps, first.seed))
+        collected.append((scenarios, points, divergence, setting))
+    for runs, (scenarios, points, divergence, setting) in zip(
         run_batches(batches, plan.workers, plan.threads, progress), collected, strict=True
     ):
         for scenario in scenarios:
             index = torch.tensor([points.index(p) for p in scenario.points])
             selected = {label: {k: v[:, index] for k, v in t.items()} for label, t in runs.items()}
-            _collect(result, scenario, selected, plan.bootstrap, divergence)
+            _collect(result, scenario, selected, plan.bootstrap, (divergence, setting))
 
 
 def _acting(plan: EvaluationPlan, divergence: float) -> list[tuple]:
@@ -296,30 +305,34 @@ def _acting(plan: EvaluationPlan, divergence: float) -> list[tuple]:
     return groups
 
 
-def _batches_at_divergences(scenarios: Sequence[Scenario]) -> list[tuple[list[Scenario], float | None]]:
-    """Each batch of :func:`_batches` at each of its divergences (S5: every point at each; else None, the env's)."""
-    return [(batch, divergence) for batch in _batches(scenarios) for divergence in batch[0].divergences or (None,)]
+def _batches_at_divergences(scenarios: Sequence[Scenario]) -> list[tuple[list[Scenario], float | None, Setting | None]]:
+    """Each batch of :func:`_batches` at each of its divergences (S5: every point at each; else None, the env's)
+    and each of its settings (S6, S7; else None)."""
+    return [(batch, divergence, setting) for batch in _batches(scenarios)
+            for divergence in batch[0].divergences or (None,) for setting in batch[0].settings or (None,)]  # fmt: skip
 
 
 def _batches(scenarios: Sequence[Scenario]) -> list[list[Scenario]]:
     batches: dict[tuple, list[Scenario]] = {}
     for s in scenarios:
-        batches.setdefault((s.realisations, s.steps, s.seed, s.divergences), []).append(s)
+        batches.setdefault((s.realisations, s.steps, s.seed, s.divergences, s.settings), []).append(s)
     return list(batches.values())
 
 
-def _collect(
-    result: Evaluation, scenario: Scenario, runs: dict[str, dict], bootstrap: Bootstrap, divergence: float | None
-) -> None:
-    """Metrics rows for every point and policy (the upper bound first) at ``divergence``, and the traces.
+def _collect(result: Evaluation, scenario: Scenario, runs: dict[str, dict], bootstrap: Bootstrap, at: tuple) -> None:
+    """Metrics rows for every point and policy (the upper bound first) ``at`` a divergence and a setting (None:
+    the env's), and the traces.
 
-    S5 keeps the traces at its power sweep's divergence only, and measures that sweep from them.
+    S5 keeps the traces at its power sweep's divergence only, and measures that sweep from them; S6 and S7 keep none.
     """
+    divergence, setting = at
     first = next(iter(runs.values()))
     runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
     kinds = {p["label"]: p["kind"] for p in result.policies}
     divergence = result.env.optics.divergence if divergence is None else divergence
     link = result.link_of(scenario.name, divergence)
+    columns = setting.columns(result.env) if setting else dict.fromkeys(SETTING_COLUMNS)
+    dt = columns["dt"] or result.dt
     for index, (wind, offset, azimuth) in enumerate(scenario.points):
         for label in kinds:
             t = runs[label]
@@ -330,9 +343,10 @@ def _collect(
                     "offset_ratio": offset,
                     "offset_azimuth_deg": azimuth,
                     "divergence": divergence,
+                    **columns,
                     "policy": label,
                     "kind": kinds[label],
-                    **_point_metrics(t, index, bootstrap, link, result.dt),
+                    **_point_metrics(t, index, bootstrap, link, dt),
                     "reference_gain": t["reference_gain"][:, index].double().mean().item(),
                     "realisations": scenario.realisations,
                     "steps": scenario.steps,
@@ -340,12 +354,12 @@ def _collect(
                 }
             )
         where = {"scenario": scenario.name, "wind": wind, "offset_ratio": offset, "offset_azimuth_deg": azimuth}
-        where["divergence"] = divergence
+        where |= {"divergence": divergence, **columns}
         held = {row["policy"]: row["rate_held"] for row in result.rows[-len(kinds) :]}
         result.comparisons += comparison_rows(result.policies, runs, index, where, held, link, bootstrap)
     sweep = scenario.power_sweep
     if scenario.divergences and (sweep is None or not math.isclose(sweep.divergence, divergence)):
-        return
+        return  # S5 but at its power sweep's divergence; S6, S7
     result.traces[scenario.name] = {
         label: {"gain": runs[label]["gain"], "gain_upper_bound": runs[label]["gain_upper_bound"]} for label in kinds
     }
