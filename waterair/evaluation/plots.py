@@ -267,9 +267,13 @@ def outage_vs_power(result, path: Path) -> Path:
     return _save_with_legend(fig, axes[0, 0], path)
 
 
+HELD = "tracking_rate_held"
+"""What S6's and S7's figures draw: the rate held 99 % of the time once tracking (after the acquisition's slew)."""
+
+
 def rate_vs_speed(result, path: Path) -> Path:
-    """S6: the rate held 99 % of the time against the drone's speed across the link (top; faint: parked on the
-    same crossing) and against its attitude jitter hovering (bottom), one column per wind, with intervals."""
+    """S6: the rate held 99 % of the tracking's time (:data:`HELD`) against the drone's speed across the link (top;
+    faint: parked on the same crossing) and against its attitude jitter hovering (bottom), a column per wind."""
     scenario = _scenario(result, "S6")
     winds = [w for w, _, _ in scenario.points]
     fig, axes = plt.subplots(2, len(winds), figsize=(max(5.2 * len(winds), 10.0), 7.5), squeeze=False)
@@ -289,15 +293,15 @@ def rate_vs_speed(result, path: Path) -> Path:
                                                                key=lambda r: r["drone_attitude_deg"]),
                                         "drone_attitude_deg", {})):  # fmt: skip
                 xs = [r[x] for r in part]
-                ax.plot(xs, [r["rate_held"] / 1e6 for r in part], **kw, **extra)
+                ax.plot(xs, [r[HELD] / 1e6 for r in part], **kw, **extra)
                 if not extra.get("alpha"):
-                    ax.fill_between(xs, [r["rate_held_lo"] / 1e6 for r in part],
-                                    [r["rate_held_hi"] / 1e6 for r in part], color=colour, alpha=0.08)  # fmt: skip
+                    ax.fill_between(xs, [r[f"{HELD}_lo"] / 1e6 for r in part],
+                                    [r[f"{HELD}_hi"] / 1e6 for r in part], color=colour, alpha=0.08)  # fmt: skip
         axes[0, column].set_title(f"U10 = {wind:g} m/s", fontsize=10)
         axes[0, column].set_xlabel("drone speed across the link (m/s)")
         axes[1, column].set_xlabel("σ of the drone's roll and pitch, hovering (deg)")
-    axes[0, 0].set_ylabel("bit rate held 99 %\nof the time (Mbit/s)")
-    axes[1, 0].set_ylabel("bit rate held 99 %\nof the time (Mbit/s)")
+    axes[0, 0].set_ylabel("bit rate held 99 % of\nthe tracking (Mbit/s)")
+    axes[1, 0].set_ylabel("bit rate held 99 % of\nthe tracking (Mbit/s)")
     for ax in axes.flat:
         ax.grid(alpha=0.3)
     link = result.link_of("S6", scenario.divergences[0])
@@ -311,7 +315,7 @@ def _at_attitude(row: dict, attitude: float | None) -> bool:
 
 
 def rate_vs_period(result, path: Path) -> Path:
-    """S7: the rate held 99 % of the time against the loop period, one panel per actuator, with intervals."""
+    """S7: the rate held 99 % of the tracking's time (:data:`HELD`) against the loop period, a panel per actuator."""
     scenario = _scenario(result, "S7")
     rows = [r for r in result.rows if r["scenario"] == "S7"]
     actuators = list(dict.fromkeys(r["actuator"] for r in rows))
@@ -324,9 +328,9 @@ def rate_vs_period(result, path: Path) -> Path:
                           key=lambda r: r["dt"])  # fmt: skip
             xs = [r["dt"] * 1e3 for r in mine]
             colour, marker, style, width = _style(result, policy)
-            ax.plot(xs, [r["rate_held"] / 1e6 for r in mine], color=colour, marker=marker, linestyle=style,
+            ax.plot(xs, [r[HELD] / 1e6 for r in mine], color=colour, marker=marker, linestyle=style,
                     linewidth=width, label=policy["label"])  # fmt: skip
-            ax.fill_between(xs, [r["rate_held_lo"] / 1e6 for r in mine], [r["rate_held_hi"] / 1e6 for r in mine],
+            ax.fill_between(xs, [r[f"{HELD}_lo"] / 1e6 for r in mine], [r[f"{HELD}_hi"] / 1e6 for r in mine],
                             color=colour, alpha=0.08)  # fmt: skip
         ax.set_xscale("log")
         ax.set_xticks(xs, [f"{v:g}" for v in xs])
@@ -334,7 +338,7 @@ def rate_vs_period(result, path: Path) -> Path:
         ax.set_title(actuator, fontsize=10)
         ax.set_xlabel("loop period env.dt (ms)")
         ax.grid(alpha=0.3)
-    axes[0, 0].set_ylabel("bit rate held 99 %\nof the time (Mbit/s)")
+    axes[0, 0].set_ylabel("bit rate held 99 % of\nthe tracking (Mbit/s)")
     seconds = scenario.settings[0].steps * scenario.settings[0].dt
     fig.suptitle(f"{scenario.title}\n{scenario.realisations} realisations × {seconds:g} s")
     return _save_with_legend(fig, axes[0, 0], path)
