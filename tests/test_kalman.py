@@ -143,3 +143,22 @@ def test_following_a_drone_at_constant_velocity_the_kalman_tracker_has_no_steady
     lag = rate * (config.latency_steps + 1) * config.dt
     assert errors["reactive"] == pytest.approx(lag, rel=0.25)
     assert errors["kalman"] < 0.2 * errors["reactive"]
+
+
+@pytest.mark.parametrize("phi", [0.1, 0.8, 2.0])
+def test_the_share_of_the_rate_that_carries_over_is_sin_phi_over_phi_for_a_sampled_sinusoid_and_whole_for_a_ramp(phi):
+    """x_k = sin(k φ) with its exact rate: Σ a b / Σ b² over many steps tends to E[cos θ (sin(θ + φ) − sin θ)] φ /
+    (φ² E[cos² θ]) = sin φ / φ; a ramp carries over whole, a reading that only jitters back and forth not at all."""
+    steps = torch.arange(4000, dtype=torch.float64)
+    x, foretold = torch.sin(steps * phi), torch.cos(steps * phi) * phi  # the rate at k, times the step (1)
+    sums = kalman.Carry(torch.zeros(()), torch.zeros(()))
+    for k in range(1, steps.numel()):
+        sums = kalman.carry(sums, x[k] - x[k - 1], foretold[k - 1], 1.0)
+    assert kalman.share(sums).item() == pytest.approx(math.sin(phi) / phi, abs=2e-3)
+    ramp = kalman.carry(kalman.Carry(torch.zeros(()), torch.zeros(())), torch.tensor(0.3), torch.tensor(0.3), 0.9)
+    assert kalman.share(ramp).item() == pytest.approx(1.0)
+    jitter = kalman.Carry(torch.zeros(()), torch.zeros(()))
+    for k in range(50):  # the reading alternates, its rate foretells the last move again
+        jitter = kalman.carry(jitter, torch.tensor((-1.0) ** k), torch.tensor((-1.0) ** (k + 1)), 0.95)
+    assert kalman.share(jitter).item() == 0.0
+    assert kalman.share(kalman.Carry(torch.zeros(()), torch.zeros(()))).item() == 1.0  # nothing foretold yet

@@ -105,7 +105,10 @@ class KalmanTracker(BeaconTracker):
       move (``env.motion``), the drone's drift and transit add theirs (:meth:`_motion_variances`).
     * Pointing ahead over what separates the reading from the pointing it sets: one step at the transmitter,
       ``latency_steps + 1`` at the receiver, and the actuators' lag (``env.actuator``: how far the axis that
-      points last trails a ramp commanded once a step; none without actuators).
+      points last trails a ramp commanded once a step; none without actuators), along the estimated rate times the
+      share of it that carried over in this episode's steps so far (:class:`~waterair.envs.kalman.Carry`, a
+      memory of :data:`MEMORY`, started at the whole rate): the whole of it on a swell or a crossing drone, less
+      where the light turns back within a step, where pointing along the rate overshoots.
     * A reading lost, read with the gimbals parked at the reset, or beyond :data:`GATE` standard deviations of its
       innovation (the centroid jumping between refraction points) starts that end's track again: it points as
       the beacon tracker does until its next reading.
@@ -118,10 +121,14 @@ class KalmanTracker(BeaconTracker):
     GATE = 4.0
     FLOOR = 1e-4
     """The smallest reading noise (rad) assumed: the detectors' resolution, where the sensor model has none."""
+    MEMORY = 4.0
+    """The time (s) over which the share of the rate that carries over fades (a few wave periods)."""
 
     def __init__(self, env, config=None):
         super().__init__(env, config)
         self.track: kalman.Track | None = None  # [2 ends, n, 2 components]
+        self.carried: kalman.Carry | None = None  # of the same shape
+        self.last: torch.Tensor | None = None  # the last reading
 
     def _sea_variances(self) -> tuple[torch.Tensor, torch.Tensor]:
         """The white acceleration's and the starting rate's variances ``[2, B, 2]`` (ends, links, components)."""
@@ -169,17 +176,25 @@ class KalmanTracker(BeaconTracker):
         variance = noise.clamp(min=self.FLOOR).square().to(reading.device).view(2, 1, 1).expand_as(reading)
         acceleration, rate = (self._rows(each, reading.shape[1]) for each in self._sea_variances())  # this episode's
         fresh = kalman.begin(reading, variance, rate)
+        dt = self.env.config.dt
+        prior = kalman.Carry(rate * dt * dt, rate * dt * dt)  # as one step of the whole rate carried over
         if self.track is None or self.track.state.shape[:-1] != reading.shape:
             self.track, usable = fresh, torch.zeros_like(usable)
-        dt = self.env.config.dt
+            self.carried, self.last = prior, reading
+        assert self.carried is not None and self.last is not None
+        starting = parked.unsqueeze(-1).expand_as(reading)  # an episode's start: its sea is a new one
+        self.carried = kalman.Carry(*(torch.where(starting, p, c) for p, c in zip(prior, self.carried, strict=True)))
         predicted = kalman.predict(self.track, dt, acceleration)
         updated, inside = kalman.update(predicted, reading, variance, self.GATE)
         tracking = usable & inside  # both components of an end are tracked together
         tracking = tracking.all(-1, keepdim=True).expand_as(tracking)
-        self.track = kalman.choose(tracking, updated, fresh)
+        foretold = torch.where(tracking, self.track.state[..., 1] * dt, torch.zeros_like(reading))  # a fresh track's: 0
+        self.carried = kalman.carry(self.carried, reading - self.last, foretold, math.exp(-dt / self.MEMORY))
+        self.track, self.last = kalman.choose(tracking, updated, fresh), reading
         lag = self.env.config.actuator.lag(dt)
         lead = torch.tensor([dt + lag, dt * (self.config.latency_steps + 1) + lag], dtype=torch.float64)
-        tilt = torch.where(tracking, kalman.ahead(self.track, lead.to(reading.device).view(2, 1, 1)), reading)
+        lead = lead.to(reading.device).view(2, 1, 1) * kalman.share(self.carried)
+        tilt = torch.where(tracking, kalman.ahead(self.track, lead), reading)
         tilt = tilt.to(tracker.dtype)
         return pointing(tilt[0], up=True), pointing(tilt[1], up=False)
 

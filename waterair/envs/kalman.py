@@ -8,6 +8,11 @@ F = [[1, Δt], [0, 1]] and gains the covariance σ_a² g gᵀ, g = (Δt²/2, Δt
 angle; one further than ``gate`` standard deviations of its innovation from the prediction (the light's centroid
 jumping between refraction points) starts the track again from it. Every tensor is ``[..., 2]`` for a state,
 ``[..., 2, 2]`` for a covariance, ``[...]`` for the rest: the functions act elementwise over the leading dimensions.
+
+How much of the estimated rate to point ahead by is learned from the readings themselves (:class:`Carry`): the
+least-squares share γ of each step's move x_k − x_{k−1} that the rate before it, times Δt, foretold, over a fading
+memory. A constant rate carries over whole (γ = 1); a sinusoid of ω Δt = φ, sampled, by sin φ / φ; light that
+turns back within a step (short waves, a centroid moving between refraction points, noise) by little.
 """
 
 from __future__ import annotations
@@ -71,3 +76,23 @@ def choose(where: torch.Tensor, first: Track, second: Track) -> Track:
         torch.where(where.unsqueeze(-1), first.state, second.state),
         torch.where(where[..., None, None], first.covariance, second.covariance),
     )
+
+
+class Carry(NamedTuple):
+    """The fading sums ``moved`` = Σ λ^j a b and ``foretold`` = Σ λ^j b² ``[...]`` of each step's move a and the
+    move its rate foretold, b = rate Δt (:func:`carry`)."""
+
+    moved: torch.Tensor
+    foretold: torch.Tensor
+
+
+def carry(sums: Carry, move: torch.Tensor, foretold: torch.Tensor, decay: float) -> Carry:
+    """``sums`` a step on: faded by ``decay`` (λ, in (0, 1]), with the step's ``move`` and the ``foretold`` one."""
+    return Carry(decay * sums.moved + move * foretold, decay * sums.foretold + foretold.square())
+
+
+def share(sums: Carry) -> torch.Tensor:
+    """The least-squares share of the rate that carries over, Σ a b / Σ b², within [0, 1] (1 where nothing was
+    foretold)."""
+    found = sums.moved / sums.foretold.clamp(min=torch.finfo(sums.foretold.dtype).tiny)
+    return torch.where(sums.foretold > 0, found, torch.ones_like(found)).clamp(0.0, 1.0)
