@@ -8,10 +8,12 @@ import math
 import pytest
 import torch
 
+from waterair.envs import platforms
 from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.kernel import flat_tilts
 from waterair.evaluation.rollouts import kinematic, rollout_policies
+from waterair.physics.motion import attitudes
 
 SMALL = dict(num_envs=4, sea={"n_wavenumbers": 12, "n_dir": 8}, seed=3, dtype="float64", max_steps=60)
 TARGET = torch.tensor([0.30, -0.20, -0.25, 0.10], dtype=torch.float64)
@@ -19,9 +21,10 @@ TARGET = torch.tensor([0.30, -0.20, -0.25, 0.10], dtype=torch.float64)
 
 
 def _commanded(env: WaterAirEnv, steps: int, target: torch.Tensor = TARGET) -> tuple[list, list]:
-    """The ``tilt`` and ``pointed`` keys over ``steps`` steps of one held absolute command ``target``."""
+    """The ``tilt`` and ``pointed`` keys over ``steps`` steps of one held absolute command ``target``, the reset's
+    pointing first in ``pointed`` (the ends start pre-pointed along the calm-sea path)."""
     td = env.reset()
-    commanded, pointed = [], []
+    commanded, pointed = [], [td["pointed"].clone()]
     action = (target / env.config.max_tilt).expand(env.batch_size[0], 4)
     for _ in range(steps):
         td = env.step(td.set("action", action.clone()))["next"]
@@ -39,7 +42,8 @@ def _step_response(t: float, f_n: float, zeta: float) -> float:
 
 def test_without_actuators_the_ends_point_where_they_are_commanded():
     commanded, pointed = _commanded(WaterAirEnv(EnvConfig(**SMALL)), 3)
-    for tilt, at in zip(commanded, pointed, strict=True):
+    assert not pointed[0].any()  # upright at the reset, as the first releases' step
+    for tilt, at in zip(commanded, pointed[1:], strict=True):
         assert torch.equal(tilt, at)
         assert torch.allclose(tilt, TARGET.expand_as(tilt), atol=1e-12)
 
@@ -49,20 +53,21 @@ def test_an_unlimited_gimbal_follows_the_second_order_step_response_in_each_axis
                     gimbal_natural_frequency=2.0, gimbal_damping=0.5)  # fmt: skip
     env = WaterAirEnv(EnvConfig(**SMALL, actuator=actuator))
     _, pointed = _commanded(env, 12)
-    angles = torch.asin(TARGET)
-    for n, at in enumerate(pointed, start=1):
-        expected = torch.sin(angles * _step_response(n * env.config.dt, 2.0, 0.5))
+    start, angles = torch.asin(pointed[0]), torch.asin(TARGET)
+    assert (start - angles).abs().min() > 0.05  # each axis has a step to make
+    for n, at in enumerate(pointed[1:], start=1):
+        expected = torch.sin(start + (angles - start) * _step_response(n * env.config.dt, 2.0, 0.5))
         assert torch.allclose(at, expected.expand_as(at), rtol=1e-9, atol=1e-12)
 
 
 def test_a_rate_limited_gimbal_slews_no_faster_than_its_rate_and_arrives():
     env = WaterAirEnv(EnvConfig(**SMALL, actuator={"kind": "gimbal", "gimbal_rate": 1.0, "gimbal_resolution": 0.0}))
     commanded, pointed = _commanded(env, 40)
-    angles = [torch.zeros(4, 4, dtype=torch.float64)] + [torch.asin(at) for at in pointed]
+    angles = [torch.asin(at) for at in pointed]
     steps = torch.stack([b - a for a, b in zip(angles, angles[1:], strict=False)]).abs()
     assert steps.max() <= 1.0 * env.config.dt + 1e-12  # 1 rad/s over 50 ms
     assert torch.allclose(commanded[0], TARGET.expand(4, 4))  # the command is at once ...
-    assert (pointed[2] - TARGET).abs().max() > 0.1  # ... the pointing not ...
+    assert (pointed[1] - TARGET).abs().max() > 0.1  # ... the pointing not ...
     assert torch.allclose(pointed[-1], TARGET.expand(4, 4), atol=1e-3)  # ... until the slew is done
 
 
@@ -71,11 +76,34 @@ def test_a_mirror_on_a_gimbal_takes_out_what_the_gimbal_leaves():
     _, gimbal = _commanded(WaterAirEnv(EnvConfig(**SMALL, actuator={"kind": "gimbal", **slow})), 8)
     _, both = _commanded(WaterAirEnv(EnvConfig(**SMALL, actuator={"kind": "gimbal_fsm", **slow})), 8)
     mirror_range = EnvConfig().actuator.mirror_range
-    for n in range(8):
+    for n in range(1, 9):
         left = (torch.asin(TARGET) - torch.asin(gimbal[n][0])).abs()
         removed = (torch.asin(gimbal[n][0]) - torch.asin(both[n][0])).abs()
         # the mirror (575 Hz) settles within the step: it removes the gimbal's error up to its range
         assert torch.allclose(removed, torch.minimum(left, torch.full_like(left, mirror_range)), atol=2e-4)
+
+
+@pytest.mark.parametrize(("kind", "motion"), [("gimbal", "static"), ("gimbal_fsm", "static"), ("gimbal", "hover")])
+def test_a_slewing_end_starts_pre_pointed_on_the_calm_sea_path_in_its_body_at_rest(kind, motion):
+    config = EnvConfig(**SMALL, actuator={"kind": kind, "gimbal_resolution": 0.0, "mirror_resolution": 0.0},
+                       motion={"kind": motion})  # fmt: skip
+    env = WaterAirEnv(config)
+    td = env.reset()
+    state = env.state
+    known = state.known.unbind(1) if motion != "static" else (state.tx_position, state.rx_position, state.flat_point)
+    aim = flat_tilts(known[2], known[0], known[1])
+    assert torch.allclose(td["pointed"], aim) and torch.allclose(td["tilt"], aim)
+    assert aim.abs().max() > 0.05 and not state.drive[..., 1::2].any()  # turned from upright, at rest
+    body = aim
+    if motion != "static":  # each end's gimbal turns in its body: the world's tilts through its read attitude
+        _, tx_read, _, rx_read = platforms.body_rotations(attitudes(state.motion))
+        body = platforms.rotate_tilts(aim, tx_read, rx_read, inverse=True)
+        assert (body - aim).abs().max() > 1e-3  # the drone's attitude is degrees
+    assert torch.allclose(state.drive[..., 0], torch.asin(body), atol=1e-12)
+    if motion == "static":  # held there, it stays there: no slew on the first step
+        after = env.step(td.set("action", aim / config.max_tilt))["next"]
+        assert torch.allclose(env.state.drive[..., :2], state.drive[..., :2], atol=1e-12)
+        assert torch.allclose(after["pointed"], aim, atol=1e-12)
 
 
 def test_a_fixed_mirror_starts_on_the_calm_sea_path_and_never_leaves_its_range_around_it():
@@ -84,7 +112,7 @@ def test_a_fixed_mirror_starts_on_the_calm_sea_path_and_never_leaves_its_range_a
     mount = flat_tilts(env.state.flat_point, env.state.tx_position, env.state.rx_position)
     assert torch.allclose(td["pointed"], mount) and torch.allclose(td["tilt"], mount)
     _, pointed = _commanded(env, 5)
-    for at in pointed:
+    for at in pointed[1:]:
         deflection = (torch.asin(at) - torch.asin(mount)).abs()
         assert deflection.max() <= 0.02 + 1e-12
         assert deflection.max() >= 0.02 - 1e-6  # the command is further than the mirror reaches: it is at its stop
@@ -94,10 +122,11 @@ def test_delta_actions_move_the_command_not_the_lagging_pointing():
     config = EnvConfig(**SMALL, action_mode="delta", actuator={"kind": "gimbal", "gimbal_rate": 0.2})
     env = WaterAirEnv(config)
     td = env.reset()
+    start = td["tilt"].clone()  # pre-pointed along the calm-sea path
     for n in range(1, 4):
         td = env.step(td.set("action", torch.ones(4, 4, dtype=torch.float64)))["next"]
         slew = math.sin(math.radians(config.max_slew_deg_s * config.dt))
-        assert torch.allclose(td["tilt"], torch.full((4, 4), n * slew, dtype=torch.float64))
+        assert torch.allclose(td["tilt"], start + n * slew)
     assert (td["pointed"] < td["tilt"] - 1e-3).all()  # 0.2 rad/s lags 60 deg/s
 
 

@@ -17,7 +17,7 @@ import torch
 from waterair.envs import platforms
 from waterair.envs.constants import StepConstants
 from waterair.envs.state import Placement, StepState
-from waterair.physics.actuator import Actuator, respond_terminal, terminal_angle
+from waterair.physics.actuator import DRIVE_WIDTH, Actuator, respond_terminal, terminal_angle
 from waterair.physics.optics import unit_vector
 
 
@@ -32,6 +32,26 @@ def mount_tilts(actuator: Actuator, flat_point, tx_position, rx_position) -> tor
     if actuator.fixed_mount:
         return flat_tilts(flat_point, tx_position, rx_position)
     return torch.zeros(flat_point.shape[0], 4, dtype=flat_point.dtype, device=flat_point.device)
+
+
+def aimed(actuator: Actuator, known: tuple, attitude: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """Where a link's ends start, pre-pointed at each other along the calm-sea path as each end knows it (``known``:
+    T, R and the calm-sea point ``[n, 3]``): the tilts ``[n, 4]`` (:func:`flat_tilts`) and the actuators' drive
+    state ``[n, 4, DRIVE_WIDTH]`` at rest pointing there in each end's body, through its read ``attitude``
+    ``[n, 8]`` where the ends move: the gimbal turned from its vertical mount, a fixed mirror from its mount."""
+    tx, rx, point = known
+    tilts = flat_tilts(point, tx, rx)
+    body = tilts
+    if attitude is not None:
+        _, tx_read, _, rx_read = platforms.body_rotations(attitude)
+        body = platforms.rotate_tilts(tilts, tx_read, rx_read, inverse=True)
+    angle = torch.asin(body) - torch.asin(mount_tilts(actuator, point, tx, rx))
+    drive = torch.zeros(*tilts.shape, DRIVE_WIDTH, dtype=tilts.dtype, device=tilts.device)
+    if actuator.fixed_mount:
+        drive[..., 2] = angle.clamp(-actuator.mirror_range, actuator.mirror_range)
+    else:
+        drive[..., 0] = angle.clamp(-actuator.gimbal_range, actuator.gimbal_range)
+    return tilts, drive
 
 
 def drive_to(c: StepConstants, state: StepState, command: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

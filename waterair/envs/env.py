@@ -325,10 +325,11 @@ class WaterAirEnv(EnvBase):
             reference_gain=reference,
             prepared=prepared,
         )
-        if config.actuator.fixed_mount:  # a fixed mirror starts centred on its mount
+        if config.actuator.moves:  # slewing ends start pre-pointed at each other, not from upright (docs/model.md §11)
             known = links.known.unbind(1) if config.motion.moves else (tx, rx, flat)
-            mount = drives.mount_tilts(config.actuator, known[2], known[0], known[1])
-            links = replace(links, tx_tilt=mount[:, :2], rx_tilt=mount[:, 2:], command=mount)
+            attitude = attitudes(links.motion) if config.motion.moves else None
+            tilts, drive = drives.aimed(config.actuator, known, attitude)
+            links = replace(links, tx_tilt=tilts[:, :2], rx_tilt=tilts[:, 2:], command=tilts, drive=drive)
         path = solve_path(
             seas,
             tx,
