@@ -268,7 +268,7 @@ def outage_vs_power(result, path: Path) -> Path:
 
 
 HELD = "tracking_rate_held"
-"""What S6's and S7's figures draw: the rate held 99 % of the time once tracking (after the acquisition's slew)."""
+"""What S6's and S7's figures draw: the rate held 99 % of the time once tracking (after the acquisition's start-up)."""
 
 
 def rate_vs_speed(result, path: Path) -> Path:

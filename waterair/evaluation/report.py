@@ -299,13 +299,13 @@ TRACKED = "tracking_rate_held"
 
 def _setting_lines(result: Evaluation, scenario) -> list[str]:
     """S6 or S7: the rate held 99 % of the tracking's steps (Mbit/s, with its interval) of every policy at each
-    setting, a table per point and actuator: after the acquisition, whose slew from the parked gimbals would
-    otherwise set every slewing end's 1 % tail."""
+    setting, a table per point and actuator: after the acquisition, whose start-up (a filter's first estimates, a
+    slow actuator's first steps) would otherwise set the 1 % tail of a short rollout."""
     period = scenario.name == "S7"
     link = _link_line(result.link_of(scenario.name, scenario.divergences[0]))
     lines = [f"Each setting of the ends is a batch of its own ({link}); the rate held in 99 % of the tracking's "
-             f"steps (after the first {ACQUISITION_SECONDS:g} s, whose slew from the parked gimbals sets the tail "
-             "of every slewing end: `acquisition_rate_held` in metrics.json), Mbit/s, with its 95 % interval:",
+             f"steps (after the first {ACQUISITION_SECONDS:g} s, the acquisition, whose start-up would set a short "
+             "rollout's tail: `acquisition_rate_held` in metrics.json), Mbit/s, with its 95 % interval:",
              ""]  # fmt: skip
     rows = [r for r in result.rows if r["scenario"] == scenario.name]
     for point in scenario.points:
