@@ -325,9 +325,9 @@ class WaterAirEnv(EnvBase):
             reference_gain=reference,
             prepared=prepared,
         )
+        attitude = attitudes(links.motion) if config.motion.moves else None
         if config.actuator.moves:  # slewing ends start pre-pointed at each other, not from upright (docs/model.md §11)
             known = links.known.unbind(1) if config.motion.moves else (tx, rx, flat)
-            attitude = attitudes(links.motion) if config.motion.moves else None
             tilts, drive = drives.aimed(config.actuator, known, attitude)
             links = replace(links, tx_tilt=tilts[:, :2], rx_tilt=tilts[:, 2:], command=tilts, drive=drive)
         path = solve_path(
@@ -341,7 +341,7 @@ class WaterAirEnv(EnvBase):
             compiled=config.compile_kernel,
         )
         noise = self.sensor.draw(self._noise_keys[rows.cpu()], dtype, self.device)
-        world = platforms.through_attitude(links.command, attitudes(links.motion)) if config.motion.moves else None
+        world = None if attitude is None else platforms.through_attitude(links.command, attitude)
         started, measurement = kernel.start(constants, links, path, noise, self.stepper.generator, world)
         self.state.write_rows(rows, started)
         for mine, value in zip(self.measurement, measurement, strict=True):
