@@ -107,8 +107,8 @@ class KalmanTracker(BeaconTracker):
       ``latency_steps + 1`` at the receiver, and the actuators' lag (``env.actuator``: how far the axis that
       points last trails a ramp commanded once a step; none without actuators), along the estimated rate times the
       share of it that carried over in this episode's steps so far (:class:`~waterair.envs.kalman.Carry`, a
-      memory of :data:`MEMORY`, started at the whole rate): the whole of it on a swell or a crossing drone, less
-      where the light turns back within a step, where pointing along the rate overshoots.
+      memory of :data:`MEMORY`, started at none of it, with one step's weight): the whole of it on a swell or a
+      crossing drone, less where the light turns back within a step, where pointing along the rate overshoots.
     * A reading lost, read with the gimbals parked at the reset, or beyond :data:`GATE` standard deviations of its
       innovation (the centroid jumping between refraction points) starts that end's track again: it points as
       the beacon tracker does until its next reading.
@@ -177,7 +177,7 @@ class KalmanTracker(BeaconTracker):
         acceleration, rate = (self._rows(each, reading.shape[1]) for each in self._sea_variances())  # this episode's
         fresh = kalman.begin(reading, variance, rate)
         dt = self.env.config.dt
-        prior = kalman.Carry(rate * dt * dt, rate * dt * dt)  # as one step of the whole rate carried over
+        prior = kalman.Carry(torch.zeros_like(rate), rate * dt * dt)  # one step's weight that none carried over
         if self.track is None or self.track.state.shape[:-1] != reading.shape:
             self.track, usable = fresh, torch.zeros_like(usable)
             self.carried, self.last = prior, reading
