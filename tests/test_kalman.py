@@ -162,3 +162,20 @@ def test_the_share_of_the_rate_that_carries_over_is_sin_phi_over_phi_for_a_sampl
         jitter = kalman.carry(jitter, torch.tensor((-1.0) ** k), torch.tensor((-1.0) ** (k + 1)), 0.95)
     assert kalman.share(jitter).item() == 0.0
     assert kalman.share(kalman.Carry(torch.zeros(()), torch.zeros(()))).item() == 1.0  # nothing foretold yet
+
+
+def test_an_episode_starts_with_none_of_the_rate_carried_over_so_a_guessed_rate_is_not_pointed_along():
+    """Its first readings give the filter a rate that is the sea's prior, not a measurement: pointed along at once,
+    a noisy start loses the acquisition. The carried share starts at 0 with one step's weight (not the fallback of
+    nothing foretold, 1), and the first move a settled rate foretells takes it most of the way up."""
+    config = EnvConfig(num_envs=3, seed=4, observation_extras=TWO_ENDED, compile_kernel=False)
+    env = WaterAirEnv(config.replace(**paper_physics(n_freq=8, n_dir=4)))
+    tracker = KalmanTracker(env)
+    td = env.reset()
+    tracker.directions(td)
+    assert tracker.carried is not None
+    assert bool((tracker.carried.foretold > 0).all()) and bool((kalman.share(tracker.carried) == 0).all())
+    prior = tracker.carried.foretold  # faded once: one step's weight, λ (rate Δt)²
+    move = 3.0 * prior.sqrt()  # a move three times the prior's step, foretold exactly
+    after = kalman.carry(tracker.carried, move, move, 1.0)
+    assert torch.allclose(kalman.share(after), torch.full_like(prior, 9.0 / 10.0))
