@@ -315,19 +315,29 @@ SENSING = ({}, REALISTIC, {"latency_steps": 2, "intensity_saturation": 0.3, "spo
 little (the quadrant tracker under the residuals reads the latency too)."""
 
 
+MOVING = {"motion": {"kind": "hover"}, "actuator": {"kind": "gimbal_fsm"}}
+"""The link at sea: its motion draws each step's normals after the readings' (the sensor's nonce first)."""
+
+
 @pytest.mark.parametrize(
-    ("acting", "sensing", "compiled"),
-    [(ACTING, None, False), (None, SENSING, False), (ACTING, SENSING, True)],
-    ids=["acting", "sensing", "both-compiled"],
+    ("acting", "sensing", "compiled", "ends"),
+    [
+        (ACTING, None, False, {}),
+        (None, SENSING, False, {}),
+        (ACTING, SENSING, True, {}),
+        (None, SENSING, False, MOVING),
+    ],
+    ids=["acting", "sensing", "both-compiled", "sensing-moving"],
 )
 def test_replicas_that_act_or_sense_their_own_ways_each_step_as_an_environment_of_that_way(
-    acting, sensing, compiled, eager_path_kernels
+    acting, sensing, compiled, ends, eager_path_kernels
 ):
     """``env.replica_actions``, ``env.replica_sensing`` (evaluation's groups of policies that act or sense
     differently): replica k of a batch steps as replica k of a batch in which every replica acts and senses its
     way, on the same seas, actions and sensor noise; compiled (traced by dynamo, run eagerly: the graph's logic,
-    not inductor's code) as eager. The paper's single path, float64."""
-    base = preset_config("quadrant", "ideal", 6, **FIXED_LINK, **PAPER)
+    not inductor's code) as eager. The paper's single path, float64. With the ends moving, the motion's draws are
+    the same whatever the replicas' sensing (a noiseless sensor draws its reading's nonce too)."""
+    base = preset_config("quadrant", "ideal", 6, **FIXED_LINK, **PAPER, **ends)
     base = base.replace(replicas=3, residual_base="aoa_tracker", residual_deg=1.0, dtype="float64")
     ways = [{**a, **b} for a, b in zip(acting or [{}] * 3, sensing or [{}] * 3, strict=True)]
     actions = torch.linspace(-1.0, 1.0, 4 * 6 * 4, dtype=torch.float64).reshape(4, 6, 4).sin()
@@ -349,6 +359,19 @@ def test_replicas_that_act_or_sense_their_own_ways_each_step_as_an_environment_o
     # the ways differ: the same action points each replica elsewhere, or each reads another observation
     for name in ("gain",) * bool(acting) + ("observation",) * bool(sensing):
         assert not torch.allclose(got[name][:, 0:2], got[name][:, 2:4]), name
+
+
+def test_replicas_that_all_act_one_way_act_that_way_not_the_configs(eager_path_kernels):
+    """Every replica acting one way other than the config's own (evaluation's kinematic reference alone on moving
+    ends: ``actuated = false``) steps as an environment configured that way, not as the config's own way."""
+    base = preset_config("quadrant", "ideal", 2, **FIXED_LINK, **PAPER, **MOVING).replace(dtype="float64")
+    actions = torch.linspace(-1.0, 1.0, 4 * 2 * 4, dtype=torch.float64).reshape(4, 2, 4).sin()
+    way = {"actuated": False, "residual_deg": 5.0}
+    expected = rollout(WaterAirEnv(base.replace(**way)), actions)
+    got = rollout(WaterAirEnv(base.replace(replica_actions=(way,))), actions)
+    for name in COMPARED:
+        torch.testing.assert_close(got[name], expected[name], rtol=1e-12, atol=1e-15, msg=name)
+    assert not torch.allclose(rollout(WaterAirEnv(base), actions)["gain"], expected["gain"])  # the way matters
 
 
 def test_replica_actions_and_sensing_are_checked_naming_the_entry():

@@ -265,9 +265,11 @@ class Sensor:
 
         Six a link, one stream (the intensity's two, the spot's two, the beacon's two, in this order, whichever
         are on); a source that is off reads zeros. One nonce is drawn from the generator per reading, so a link's
-        noise depends on its key and the reading's count alone.
+        noise depends on its key and the reading's count alone; a noiseless sensor draws its nonce too, so that the
+        draws after it (the ends' motion's) are the same whatever the sensing (a replica's included).
         """
         if not (self.noisy_intensity or self.noisy_spot or self.noisy_beacon):
+            draw_nonce(self.generator)
             return None
         draws = torch.where(self._noise_on, normals(keys, draw_nonce(self.generator), 6), 0.0)
         relative, floor, spot, beacon = draws.to(device=device, dtype=dtype).split((1, 1, 2, 2), dim=-1)
