@@ -89,7 +89,7 @@ class StepConstants:
             reward=reward,
             solver=solver,
             tolerance=solver.tolerance(getattr(torch, config.dtype)),
-            actions=Actions.of(config),
+            actions=each[0] if not distinct else Actions.of(config),  # every replica's way where they share one
             max_tilt=config.max_tilt,
             slew_step=math.sin(math.radians(config.max_slew_deg_s * config.dt)),
             dt=config.dt,
