@@ -7,6 +7,7 @@ from conftest import compose_config
 
 from waterair.core.compiling import graphs_kept, graphs_name, keep_graphs
 from waterair.envs.config import EnvConfig
+from waterair.evaluation import runner
 from waterair.evaluation.compiling import compiled_group, note_compiled
 from waterair.evaluation.runner import prepare
 from waterair.physics.channel import FullChannel, SinglePathChannel
@@ -87,6 +88,18 @@ def test_an_evaluation_group_compiles_when_its_own_frames_repay_it(tmp_path, mon
     assert other.compile_kernel is False
 
 
+def test_a_group_run_in_several_processes_compiles_when_each_ones_share_repays_it(tmp_path, monkeypatch):
+    """Each process that runs a group's batches compiles its graphs: 600,000 frames repay one cold compile, not two
+    (one in each of two processes, 300,000 frames each)."""
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
+    config = EnvConfig(num_envs=64)
+    assert FullChannel.evaluation_frames["cold"] == 500_000  # the numbers below straddle it
+    assert compiled_group(config, 600_000)[0].compile_kernel is True
+    decided, why = compiled_group(config, 600_000, processes=2)
+    assert decided.compile_kernel is False and "300,000 frames to go < 500,000" in why
+    assert compiled_group(config, 1_200_000, processes=2)[0].compile_kernel is True
+
+
 def test_an_evaluation_decides_for_each_group_and_notes_the_groups_it_compiled(tmp_path, monkeypatch):
     from test_evaluation import eval_cfg
 
@@ -101,6 +114,11 @@ def test_an_evaluation_decides_for_each_group_and_notes_the_groups_it_compiled(t
     assert [config.compile_kernel for config, _ in plan.groups] == [False]  # its graphs not kept
     note_compiled(plan.groups[0][0].replace(compile_kernel=True))
     assert [config.compile_kernel for config, _ in prepare(eval_cfg(*overrides)).groups] == [True]
+    # in three processes each would load the graphs for a third of the frames, 26,827 < 35,000: eager
+    monkeypatch.setattr(runner, "choose_workers", lambda *args: (3, 1, "3 processes"))
+    assert [config.compile_kernel for config, _ in prepare(eval_cfg(*overrides)).groups] == [False]
+    monkeypatch.undo()
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
     # a policy alone: its own group, whose 16,096 frames do not repay even graphs kept
     alone = prepare(eval_cfg(*overrides, "batch_policies=false")).groups
     assert len(alone) == 5 and not any(config.compile_kernel for config, _ in alone)

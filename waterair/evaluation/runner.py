@@ -216,12 +216,13 @@ def prepare(cfg: DictConfig, policies: Sequence[LearnedPolicy] | None = None) ->
                     )
     together = bool(cfg.get("batch_policies", True))
     groups = policy_groups(base, baselines, learned, together)
-    if compile_kernel == "auto":  # each group compiles when its own frames repay its graphs (evaluation/compiling.py)
-        per_policy = sum(len(s.points) * s.realisations * s.steps * max(1, len(s.divergences))
-                         for s in scenarios if not s.settings)  # fmt: skip
-        groups = [(compiled_group(config, len(members) * per_policy)[0], members) for config, members in groups]
     batches = len(_batches_at_divergences(scenarios))
     workers, threads, processes = choose_workers(cfg.get("workers", AUTO), batches, base.device)
+    if compile_kernel == "auto":  # each group compiles when its frames repay its graphs (evaluation/compiling.py)
+        per_policy = sum(len(s.points) * s.realisations * s.steps * max(1, len(s.divergences))
+                         for s in scenarios if not s.settings)  # fmt: skip
+        groups = [(compiled_group(config, len(members) * per_policy, workers)[0], members)
+                  for config, members in groups]  # fmt: skip
     return EvaluationPlan(
         scenarios, bootstrap, base, link, baselines, list(policies), learned, together, groups, links,
         workers, threads, processes, compile_kernel == "auto",
