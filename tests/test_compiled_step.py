@@ -6,17 +6,20 @@ point within the solver tolerance: the comparison allows 1e-4 relative. Where th
 left the receiver (I ~ 1e-7), its Gaussian tail turns that into a per-mille change of I, which the
 observed log-intensity feature shows as up to ~1e-4 absolute.
 
-What inductor compiles is checked in parts, each test compiling one graph of its own (none relies on another's
-compile, whatever the order), each as small as its code allows: the compile, not the rollout, is the time. One
-environment is stepped compiled and eagerly, compiling in turn its step, its dense finishing and its concluding
-graph, the others eager: the observation presets are subsets of one observation with every extra (each part is
-built by its own code whichever preset asks for it), read through the realistic sensor (noise, latency,
-saturation, gating) with residual actions on the quadrant tracker, the training defaults' per-link draws and a
-divergence per link, on the paper's sea and single path, whose exact point needs the finishing (one Newton
-iteration in the step and two at a time in the finishing, so that links are finished on most steps). The full
-channel's two models (the ray tube on the paper's sea, the two-scale lattice on the defaults') differ from it
-only in their light and reception, each compiled on its own; that an environment on the defaults' channel traces
-into one step graph is the evaluation tests' below.
+What inductor compiles is checked in parts, each test compiling one graph of its own (none relies on another's compile,
+whatever the order), each as small as its code allows: the compile, not the rollout, is the time. One environment is
+stepped compiled and eagerly, compiling in turn its step, its dense finishing and its concluding graph, the others
+eager. Inductor compiles the step; the finishing (more masked iterations of the step's solve, then the step's
+conclusion) and the conclusion alone are traced by dynamo and AOT autograd into one graph each and run with eager
+kernels (``aot_eager``): every operation in them is in the step's graph, or in the fixed-iteration solve's that inductor
+compiles below, and inductor's lowering of each again took 10-15 s a test on the slowest machine (docs/benchmarks.md,
+"Tests"). The environment: the observation presets are subsets of one observation with every extra (each part is built
+by its own code whichever preset asks for it), read through the realistic sensor (noise, latency, saturation, gating)
+with residual actions on the quadrant tracker, the training defaults' per-link draws and a divergence per link, on the
+paper's sea and single path, whose exact point needs the finishing (one Newton iteration in the step and two at a time
+in the finishing, so that links are finished on most steps). The full channel's two models (the ray tube on the paper's
+sea, the two-scale lattice on the defaults') differ from it only in their light and reception, each compiled on its own;
+that an environment on the defaults' channel traces into one step graph is the evaluation tests' below.
 """
 
 import functools
@@ -24,8 +27,10 @@ from dataclasses import replace
 
 import pytest
 import torch
+from torch._dynamo.testing import CompileCounter
 
 from tests.conftest import paper_physics, preset_config
+from tests.test_torch_internals import aot_eager_counted
 from waterair.envs import kernel, stepper
 from waterair.envs.config import OBSERVATION_EXTRAS
 from waterair.envs.env import WaterAirEnv
@@ -79,11 +84,23 @@ def rollout(env: WaterAirEnv, actions: torch.Tensor) -> dict[str, torch.Tensor]:
     return {key: torch.stack(values) for key, values in trace.items()}
 
 
-def compiling_only(monkeypatch, *names: str) -> None:
-    """Compiled environments compile only the kernel functions ``names`` (of ``step``, ``finish``,
-    ``conclude``) with inductor; the others run eagerly, the same code."""
-    real = stepper.compiled
-    monkeypatch.setattr(stepper, "compiled", lambda name: real(name) if name in names else getattr(kernel, name))
+def compiling_only(monkeypatch, name: str, inductor: bool = True) -> CompileCounter:
+    """Compiled environments compile only the kernel function ``name`` (``step``, ``finish`` or ``conclude``), with
+    inductor or else with AOT autograd's eager kernels (``aot_eager``), counting its graphs in the counter returned;
+    the others run eagerly, the same code."""
+    settings, counter = stepper.compiled, CompileCounter()
+
+    def compiled(kernel_name):
+        if kernel_name != name:
+            return getattr(kernel, kernel_name)
+        if inductor:
+            return settings(kernel_name)
+        settings(kernel_name)  # its settings (recompile limit, tensordict's answers)
+        return torch.compile(getattr(kernel, kernel_name), backend=aot_eager_counted(counter))
+
+    monkeypatch.setattr(stepper, "compiled", compiled)
+    torch._dynamo.reset()
+    return counter
 
 
 def compiled_against_eager(monkeypatch) -> None:
@@ -123,22 +140,24 @@ def test_the_compiled_step_agrees_with_eager_and_an_eager_env_beside_it_stays_ea
 
 
 @pytest.mark.slow
-def test_the_dense_finishing_graph_agrees_with_eager(monkeypatch, inductor, eager_path_kernels):
+def test_the_dense_finishing_graph_agrees_with_eager(monkeypatch, eager_path_kernels):
     """The finishing of a small batch (at most DENSE_FINISH_BATCH links): more masked iterations over the whole
-    batch and the step concluded again, one graph; the step before it runs eagerly, as do the few links left for
-    the gathered finishing."""
-    compiling_only(monkeypatch, "finish")
+    batch and the step concluded again, one graph traced once; the step before it runs eagerly, as do the few links
+    left for the gathered finishing."""
+    traced = compiling_only(monkeypatch, "finish", inductor=False)
     compiled_against_eager(monkeypatch)
+    assert traced.frame_count == 1, f"the finishing traced into {traced.frame_count} graphs"
 
 
 @pytest.mark.slow
-def test_the_concluding_graph_agrees_with_eager(monkeypatch, inductor, eager_path_kernels):
+def test_the_concluding_graph_agrees_with_eager(monkeypatch, eager_path_kernels):
     """The finishing of a large batch (here every batch: DENSE_FINISH_BATCH 0) gathers the unconverged links for
     the fixed-iteration and adaptive solvers (their compiled kernels are the fixed-iteration test's below), then
-    concludes the step in a graph of its own; the step before it runs eagerly."""
+    concludes the step in a graph of its own, traced once; the step before it runs eagerly."""
     monkeypatch.setattr(stepper, "DENSE_FINISH_BATCH", 0)
-    compiling_only(monkeypatch, "conclude")
+    traced = compiling_only(monkeypatch, "conclude", inductor=False)
     compiled_against_eager(monkeypatch)
+    assert traced.frame_count == 1, f"the conclusion traced into {traced.frame_count} graphs"
 
 
 FULL_CHANNEL = {
@@ -230,8 +249,16 @@ def test_fixed_iteration_solver_without_finishing_flags_unconverged_links_invali
 EVALUATION_ENVS = (
     (4, {"optics": {"divergence": 0.05}, "replicas": 2}),
     (9, {"optics": {"divergence": 0.005}, "replicas": 3, "intensity_noise": 0.2, "spot_noise_rad": 0.01}),
-    (6, {"optics": {"divergence": 0.02}, "replicas": 2, "intensity_noise_floor": 0.01, "spot_threshold": 0.05}),
-    (6, {"optics": {"divergence": 0.05}, "replicas": 3, "residual_deg": 1.0}),
+    (
+        6,
+        {
+            "optics": {"divergence": 0.02},
+            "replicas": 2,
+            "intensity_noise_floor": 0.01,
+            "spot_threshold": 0.05,
+            "residual_deg": 1.0,
+        },
+    ),
 )
 """Environments of one structure (quadrant detector, realistic sensor, residual on the tracker, two or more
 copies of each link) that differ in every number an evaluation's groups differ in: the batch, ω_D (S5), the
