@@ -304,32 +304,37 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(
 
 @pytest.mark.slow
 def test_a_groups_graph_in_an_evaluation_does_not_depend_on_the_groups_before_it(monkeypatch, eager_path_kernels):
-    """The realistic sensor's step graph is the same whether or not an ideal-sensor group (no latency: one
-    packet in flight, not two) compiled before it in the process. With torch's automatic dynamic shapes the
-    second compile would make the packets' count symbolic, and the graph, which a later process looks up in
-    torch's compile cache, would depend on the order of the groups. Traced only, on the paper's single path over
-    a small sea (the packets are the channel's whatever it is); the graphs' code compared."""
+    """The realistic sensor's step graph compiled after an ideal-sensor group's (no latency: one packet in flight, not
+    two) has no size symbolic but the batch's, as compiled alone. With torch's automatic dynamic shapes the second
+    compile would make the packets' count symbolic, and the graph, which a later process looks up in torch's compile
+    cache, would depend on the order of the groups. Traced only, on the paper's single path over a small sea (the
+    packets are the channel's whatever it is); each graph's inputs read for the sizes dynamo made symbolic."""
+    graphs = []
 
-    def realistic_graph(after_ideal: bool) -> str:
-        codes = []
+    def keep(graph, example_inputs):  # a backend that keeps each graph and runs it as traced
+        graphs.append(graph)
+        return graph.forward
 
-        def keep(graph, example_inputs):  # a backend that keeps each graph's code and runs it as traced
-            codes.append(graph.code)
-            return graph.forward
+    def symbolic(graph) -> set[int]:  # the dimensions of the graph's tensor inputs whose size is symbolic
+        shapes = [getattr(node.meta.get("example_value"), "shape", ()) for node in graph.graph.nodes
+                  if node.op == "placeholder"]  # fmt: skip
+        return {dim for shape in shapes for dim, size in enumerate(shape) if isinstance(size, torch.SymInt)}
 
-        torch._dynamo.reset()
-        step = torch.compile(kernel.step, backend=keep)
-        monkeypatch.setattr(stepper, "compiled", lambda name: step if name == "step" else getattr(kernel, name))
-        with stepper.varying_environments():
-            for sensor in ("ideal", "realistic") if after_ideal else ("realistic",):
-                physics = paper_physics(n_freq=16, n_dir=8)  # one Newton iteration a step: a smaller graph to trace
-                config = preset_config("quadrant", sensor, 4, compile_kernel=True, newton_iterations=1, **physics)
-                rollout(WaterAirEnv(config.replace(**FIXED_LINK)), torch.zeros(2, 4, 4))
-        assert len(codes) == (2 if after_ideal else 1)
-        return codes[-1]
-
-    alone, after = realistic_graph(after_ideal=False), realistic_graph(after_ideal=True)
-    assert "packets" in alone and alone == after
+    torch._dynamo.reset()
+    step = torch.compile(kernel.step, backend=keep)
+    monkeypatch.setattr(stepper, "compiled", lambda name: step if name == "step" else getattr(kernel, name))
+    with stepper.varying_environments():
+        for sensor in ("ideal", "realistic"):
+            physics = paper_physics(n_freq=16, n_dir=8)  # one Newton iteration a step: a smaller graph to trace
+            config = preset_config("quadrant", sensor, 4, compile_kernel=True, newton_iterations=1, **physics)
+            rollout(WaterAirEnv(config.replace(**FIXED_LINK)), torch.zeros(2, 4, 4))
+    assert len(graphs) == 2, f"{len(graphs)} graphs for two sensors"
+    ideal, realistic = graphs
+    assert "packets" in realistic.code and realistic.code != ideal.code
+    assert symbolic(ideal) == symbolic(realistic) == {0}, (
+        f"sizes symbolic in the realistic sensor's graph after the ideal one's: dimensions {symbolic(realistic)} of "
+        "its inputs (the batch's alone, 0, is symbolic in a graph compiled first)"
+    )
 
 
 REALISTIC = {"latency_steps": 1, "intensity_noise": 0.05, "intensity_noise_floor": 1e-3, "intensity_saturation": 4.0,
