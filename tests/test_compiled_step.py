@@ -12,7 +12,7 @@ stepped compiled and eagerly, compiling in turn its step, its dense finishing an
 eager. Inductor compiles the step; the finishing (more masked iterations of the step's solve, then the step's
 conclusion) and the conclusion alone are traced by dynamo and AOT autograd into one graph each and run with eager
 kernels (``aot_eager``): every operation in them is in the step's graph, or in the fixed-iteration solve's that inductor
-compiles below, and inductor's lowering of each again took 10-15 s a test on the slowest machine (docs/benchmarks.md,
+compiles below, and inductor's lowering again made those tests 20 and 15 s long on an empty cache (docs/benchmarks.md,
 "Tests"). The environment: the observation presets are subsets of one observation with every extra (each part is built
 by its own code whichever preset asks for it), read through the realistic sensor (noise, latency, saturation, gating)
 with residual actions on the quadrant tracker, the training defaults' per-link draws and a divergence per link, on the
@@ -86,8 +86,8 @@ def rollout(env: WaterAirEnv, actions: torch.Tensor) -> dict[str, torch.Tensor]:
 
 def compiling_only(monkeypatch, name: str, inductor: bool = True) -> CompileCounter:
     """Compiled environments compile only the kernel function ``name`` (``step``, ``finish`` or ``conclude``), with
-    inductor or else with AOT autograd's eager kernels (``aot_eager``), counting its graphs in the counter returned;
-    the others run eagerly, the same code."""
+    inductor or else with AOT autograd's eager kernels (``aot_eager``), whose graphs the counter returned counts; the
+    others run eagerly, the same code."""
     settings, counter = stepper.compiled, CompileCounter()
 
     def compiled(kernel_name):
