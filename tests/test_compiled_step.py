@@ -210,27 +210,36 @@ def test_the_full_channels_light_and_reception_compile_to_what_they_measure_eage
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("dtype,bound,compiled", [(torch.float64, 1e-9, False), (torch.float32, 1e-4, True)])
+@pytest.mark.parametrize(
+    "dtype,bound,compiled",
+    [(torch.float64, 1e-9, None), (torch.float32, 1e-4, "fixed"), (torch.float32, 1e-4, "adaptive")],
+)
 def test_fixed_iteration_paths_obey_snell_and_match_the_adaptive_solver(
-    dtype, bound, compiled, default_positions, inductor
+    dtype, bound, compiled, default_positions, inductor, monkeypatch
 ):
     """The fixed-iteration solver from cold starts (most links need the finishing stages): eagerly in float64,
     where the bound is tight, and compiled in float32, as environments run it to finish the links of a large
-    batch (two iterations at a time, as in the tests above)."""
+    batch (two iterations at a time, as in the tests above): its iterations' kernel (on every link, then on those
+    left) or the adaptive solver's (on the few left after them), each compiled in a test of its own, the other
+    eager."""
+    if compiled == "fixed":
+        monkeypatch.setattr(newton, "_compiled_fermat", lambda: newton.fermat_terms)
+    elif compiled == "adaptive":
+        monkeypatch.setattr(fixed, "compiled_fixed_newton", lambda: fixed.fixed_newton_terms)
     tx, rx = (v.to(dtype) for v in default_positions)
     surface = WaveSurface.sample(sea_state("jonswap", wind=12.0), 256, seed=3, dtype=dtype)
     adaptive = solve_path(surface, tx, rx, 4.0)
-    fixed = solve_path(surface, tx, rx, 4.0, method="newton_fixed", compiled=compiled)
-    assert fixed.valid.float().mean().item() >= 0.99
-    both = fixed.valid & adaptive.valid
-    cross_d = torch.linalg.cross(fixed.departure, fixed.normal, dim=-1)
-    cross_a = torch.linalg.cross(fixed.arrival, fixed.normal, dim=-1)
+    path = solve_path(surface, tx, rx, 4.0, method="newton_fixed", compiled=compiled is not None)
+    assert path.valid.float().mean().item() >= 0.99
+    both = path.valid & adaptive.valid
+    cross_d = torch.linalg.cross(path.departure, path.normal, dim=-1)
+    cross_a = torch.linalg.cross(path.arrival, path.normal, dim=-1)
     residual = torch.linalg.vector_norm(1.33 * cross_d - 1.0 * cross_a, dim=-1)
-    assert residual[fixed.valid].max().item() < bound
-    height = surface.height(fixed.point[:, 0], fixed.point[:, 1], 4.0)
-    assert (height - fixed.point[:, 2])[fixed.valid].abs().max().item() < 10 * bound
+    assert residual[path.valid].max().item() < bound
+    height = surface.height(path.point[:, 0], path.point[:, 1], 4.0)
+    assert (height - path.point[:, 2])[path.valid].abs().max().item() < 10 * bound
     # the same stationary point as the adaptive solver for almost every link (a few find another branch)
-    close = torch.linalg.vector_norm(fixed.point - adaptive.point, dim=-1) < 1e3 * bound
+    close = torch.linalg.vector_norm(path.point - adaptive.point, dim=-1) < 1e3 * bound
     assert close[both].float().mean().item() >= 0.99
 
 
