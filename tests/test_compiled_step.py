@@ -258,17 +258,9 @@ def test_fixed_iteration_solver_without_finishing_flags_unconverged_links_invali
 EVALUATION_ENVS = (
     (4, {"optics": {"divergence": 0.05}, "replicas": 2}),
     (9, {"optics": {"divergence": 0.005}, "replicas": 3, "intensity_noise": 0.2, "spot_noise_rad": 0.01}),
-    (
-        6,
-        {
-            "optics": {"divergence": 0.02},
-            "replicas": 2,
-            "intensity_noise_floor": 0.01,
-            "spot_threshold": 0.05,
-            "residual_deg": 1.0,
-        },
-    ),
-)
+    (6, {"optics": {"divergence": 0.02}, "replicas": 2, "intensity_noise_floor": 0.01, "spot_threshold": 0.05,
+         "residual_deg": 1.0}),
+)  # fmt: skip
 """Environments of one structure (quadrant detector, realistic sensor, residual on the tracker, two or more
 copies of each link) that differ in every number an evaluation's groups differ in: the batch, ω_D (S5), the
 copies of each link (a group's policies), the sensor's noise levels and threshold, and the residual's range."""

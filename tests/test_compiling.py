@@ -115,10 +115,9 @@ def test_an_evaluation_decides_for_each_group_and_notes_the_groups_it_compiled(t
     note_compiled(plan.groups[0][0].replace(compile_kernel=True))
     assert [config.compile_kernel for config, _ in prepare(eval_cfg(*overrides)).groups] == [True]
     # in three processes each would load the graphs for a third of the frames, 26,827 < 35,000: eager
-    monkeypatch.setattr(runner, "choose_workers", lambda *args: (3, 1, "3 processes"))
-    assert [config.compile_kernel for config, _ in prepare(eval_cfg(*overrides)).groups] == [False]
-    monkeypatch.undo()
-    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path))
+    with monkeypatch.context() as workers:
+        workers.setattr(runner, "choose_workers", lambda *args: (3, 1, "3 processes"))
+        assert [config.compile_kernel for config, _ in prepare(eval_cfg(*overrides)).groups] == [False]
     # a policy alone: its own group, whose 16,096 frames do not repay even graphs kept
     alone = prepare(eval_cfg(*overrides, "batch_policies=false")).groups
     assert len(alone) == 5 and not any(config.compile_kernel for config, _ in alone)
