@@ -537,10 +537,9 @@ LATER_KEYS = (*BEACON_KEYS, "divergence_range", "divergence_values", "residual_b
 """The env keys that came after ``intensity`` and ``paper`` were trained: the beacon's (their sensors read none),
 each link's own divergence (they were trained at one, ``optics.divergence``), the transmitter's residual in
 beam widths, how each replica acts and senses, the operating point, where the draws come from, the ends'
-actuators and whether they act, and how the ends move (after ``default`` too). Their defaults (null; no actuators;
-still ends) are how they were
-trained, but for the draws': all three were trained on the generator's stream (``env.draws=stream``), keyed draws'
-default came after them."""
+actuators and whether they act, and how the ends move. Their defaults (null; no actuators; still ends) are how they
+were trained, but for the draws': they were trained on the generator's stream (``env.draws=stream``), keyed draws'
+default came after them. ``default``, re-earned on the moving ends, holds them all."""
 
 
 @pytest.mark.parametrize("name", list(SHIPPED))

@@ -36,13 +36,14 @@ TRAINED_ON = {f"{name}_range": home for name, home in FIXED.items()}
 """What the report says a learned policy was trained on: each per-link draw's range, else its one value."""
 SHIPPED = {
     "default": (),
-    "intensity": ("env/observation=intensity",),
+    "intensity": ("env/observation=intensity", "env/motion=static", "env/actuator=ideal"),
     "paper": ("+experiment=paper",),
 }
 """The shipped policies in :data:`ASSETS` (``NAME.pt``, ``NAME.yaml``, ``NAME_metrics.json``), which
 ``python evaluate.py`` evaluates when given no run or checkpoint, and the ``train.py`` overrides
-each was trained with (on defaults otherwise: ``default`` and ``intensity`` on the measured-slope sea and
-the full channel, ``paper`` on the paper's physics; docs/results.md). ``default`` serves every beam divergence
+each was trained with (on defaults otherwise: ``default`` on the link at sea, its ends moving and slewing;
+``intensity`` on the same sea and channel with both ends still, pointing where commanded, as before motion and
+actuators; ``paper`` on the paper's physics; docs/results.md). ``default`` serves every beam divergence
 (it observes its link's); policies trained at one divergence each may still share a label and act as one
 (:mod:`waterair.evaluation.per_divergence`)."""
 
