@@ -50,7 +50,8 @@ FIXED_LINK = {"wind_range": None, "offset_range": None}
 """The evaluation's environments below: every link at the default wind and offset."""
 STILL = {"motion": {"kind": "static"}, "actuator": {"kind": "ideal"}}
 """Both ends still, pointing where commanded: the step whose graphs these tests count. With the ends moving and slewing
-(the defaults) the finishing and the conclusion each trace into two graphs, not one."""
+(the defaults) each graph compiles twice: the state's tilts are contiguous at the reset and slices of the ``[B, 4]``
+pointing after a step, and dynamo guards their strides (``TORCH_LOGS=recompiles``)."""
 STEP = {
     **STILL,
     "observation_extras": OBSERVATION_EXTRAS,
