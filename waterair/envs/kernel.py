@@ -85,8 +85,8 @@ def _advance(c: StepConstants, state: StepState, action: torch.Tensor, noise: Se
     normals = None if noise is None else noise.motion
     pointed, drive, placed, world = drives.point(c, state, command, actuated, time, normals)
     return Moved(
-        tx_tilt=pointed[:, :2],
-        rx_tilt=pointed[:, 2:],
+        tx_tilt=pointed[:, :2].contiguous(),  # each end's own [B, 2], as the reset lays it: no stride guard fails
+        rx_tilt=pointed[:, 2:].contiguous(),
         action_history=torch.cat((action.unsqueeze(1), state.action_history[:, :-1]), dim=1),
         time=time,
         steps=steps,
