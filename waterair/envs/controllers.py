@@ -208,7 +208,8 @@ class AoATracker(PointingPolicy):
 
     * Receiver: boresight along the measured incoming direction (from R toward the surface point).
     * Transmitter: the incoming ray, back-projected from R to the mean sea level z = 0, gives a
-      point P0; the transmitter points at P0 (the wave height at the true point is unknown).
+      point P0; the transmitter points at P0 (the wave height at the true point is unknown). P0 is as far off
+      as R is: a hovering drone's drift, which no controller knows, moves it by as much (docs/results.md, S1).
     * No reading (``spot_valid`` 0: no light, or below the detector threshold), or only the one read
       with the gimbals parked upright at the reset (acquisition: the first ``latency_steps + 1``
       decisions): flat-sea Snell. With the beam aimed away from the path, the centroid of the light
