@@ -19,6 +19,7 @@ import waterair.training.algorithms as algorithms
 from waterair.training.algorithms import ALGORITHMS, Algorithm
 from waterair.training.algorithms.ddpg import DDPG
 from waterair.training.algorithms.ppo import PPO
+from waterair.training.algorithms.sac import SAC
 from waterair.training.algorithms.td3 import TD3
 
 AGENT_CONF = ROOT / "conf" / "agent"
@@ -107,17 +108,17 @@ def test_the_agreement_check_catches_each_kind_of_disagreement(tmp_path):
     assert any("td3.yaml's loss torchrl.objectives.TD3Loss but DDPG.loss_target" in p for p in swapped)
     assert any("td3 is waterair.training.algorithms.ddpg.DDPG, not in a module" in p for p in swapped)
     # an option without an algorithm, and an option naming another agent
-    (tmp_path / "sac.yaml").write_text((AGENT_CONF / "ddpg.yaml").read_text())
+    (tmp_path / "a2c.yaml").write_text((AGENT_CONF / "ddpg.yaml").read_text())
     (tmp_path / "ppo.yaml").write_text((AGENT_CONF / "ppo.yaml").read_text().replace("name: ppo", "name: pp0"))
     problems = disagreements(ALGORITHMS, tmp_path, classes)
-    assert any("conf/agent options ['ddpg', 'ppo', 'sac', 'td3']" in p for p in problems)
+    assert any("conf/agent options ['a2c', 'ddpg', 'ppo', 'sac', 'td3']" in p for p in problems)
     assert "conf/agent/ppo.yaml has agent.name = 'pp0'" in problems
     # an algorithm class left out of the registry, and an on-policy agent starting on random actions
     assert any("but algorithm classes" in p for p in disagreements({"ppo": PPO, "ddpg": DDPG}, AGENT_CONF, classes))
     ppo = (AGENT_CONF / "ppo.yaml").read_text()
     (tmp_path / "ppo.yaml").write_text(ppo.replace("init_random_frames: 0", "init_random_frames: 400"))
     assert any("is on-policy" in p for p in disagreements(ALGORITHMS, tmp_path, classes))
-    assert {TD3, PPO, DDPG} == set(classes)
+    assert {TD3, PPO, DDPG, SAC} == set(classes)
 
 
 def test_nothing_outside_the_registry_names_an_algorithm_or_compares_agent_name():

@@ -36,7 +36,7 @@ CASES = [
     ("train.py", "env.device=cuda", "env.device = 'cuda' is not available"),
     ("train.py", "resume={missing}", "does not exist"),
     ("train.py", "resume={tmp}", "is not a waterair run directory"),
-    ("train.py", "agent=sac", "agent=sac is not an option of agent; choose one of ddpg, ppo, td3"),
+    ("train.py", "agent=a2c", "agent=a2c is not an option of agent; choose one of ddpg, ppo, sac, td3"),
     ("evaluate.py", "run={missing}", "is not a run directory"),
     ("evaluate.py", "checkpoint={random}", "is not a torch file"),
     ("evaluate.py", "checkpoint={truncated}", "is truncated or damaged"),

@@ -57,7 +57,13 @@ def run_cli(*args, timeout=300, env=None):
     return run_scripts.run("train.py", *args, env=env, timeout=timeout)
 
 
-SHORT_RUNS = {"ppo": [], "ddpg": ["agent=ddpg"], "td3": ["agent=td3"], "ou": ["agent=ddpg", "noise=ou"]}
+SHORT_RUNS = {
+    "ppo": [],
+    "ddpg": ["agent=ddpg"],
+    "td3": ["agent=td3"],
+    "ou": ["agent=ddpg", "noise=ou"],
+    "sac": ["agent=sac"],
+}
 """A short run of each agent (DDPG also with OU noise), on one torch thread so that it rounds alike on every core
 count."""
 RECORDED_RUNS = ROOT / "tests" / "data" / "training_reference.pt"

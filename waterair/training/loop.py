@@ -1,4 +1,4 @@
-"""PPO, DDPG or TD3 training of the beam-alignment agent from a Hydra config (docs/training.md).
+"""PPO, DDPG, TD3 or SAC training of the beam-alignment agent from a Hydra config (docs/training.md).
 
 ``train(cfg, run_dir)`` reads as the list of steps it takes; :mod:`waterair.training.builders`
 builds the shared pieces from their config groups and the algorithm that ``agent.name`` chooses
@@ -128,7 +128,7 @@ def _train(
         clock = time.perf_counter()
         losses = learn(batch, counters)
         update_seconds = time.perf_counter() - clock
-        scalars = batch_scalars(batch, losses, noise, env_seconds, update_seconds, link)
+        scalars = batch_scalars(batch, losses, noise, env_seconds, update_seconds, link, algorithm.logged)
         counters.episodes += int(batch["next", "done"].sum())
         log.scalars(counters.frames, scalars)
         bar.update(batch.numel())
@@ -167,9 +167,16 @@ def _train(
 
 
 def batch_scalars(
-    batch, losses, noise, env_seconds: float, update_seconds: float, link: LinkBudget | None = None
+    batch,
+    losses,
+    noise,
+    env_seconds: float,
+    update_seconds: float,
+    link: LinkBudget | None = None,
+    logged: Sequence[str] = (),
 ) -> dict[str, float]:
-    """TensorBoard/CSV scalars of one collected batch; the link's outage and BER of ``link`` (default budget)."""
+    """TensorBoard/CSV scalars of one collected batch; the link's outage and BER of ``link`` (default budget), and
+    the means of the updates' ``logged`` entries (the algorithm's, after its actor and critic losses)."""
     nxt = batch["next"]
     gain, upper = nxt["gain"].double(), nxt["gain_upper_bound"].double()
     delivered = link_performance(gain, link or LinkBudget())
@@ -190,8 +197,8 @@ def batch_scalars(
     if losses:
         means = torch.stack(losses).double().mean(0).tolist()  # one host sync per batch
         scalars["loss/actor"], scalars["loss/critic"] = means[:2]
-        if len(means) > 2:  # PPO: the approximate KL from the collecting policy, and its passes
-            scalars["loss/kl"] = means[2]
+        scalars.update(zip(logged, means[2:], strict=True))
+        if "loss/kl" in logged:  # PPO's passes end early once the policy moved by target_kl: how many it took
             scalars["train/updates"] = len(losses)
     return scalars
 

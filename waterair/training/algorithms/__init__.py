@@ -9,9 +9,10 @@ files ``conf/agent/<name>.yaml`` configure them (docs/training.md).
 from waterair.training.algorithms.base import Algorithm
 from waterair.training.algorithms.ddpg import DDPG
 from waterair.training.algorithms.ppo import PPO
+from waterair.training.algorithms.sac import SAC
 from waterair.training.algorithms.td3 import TD3
 
-ALGORITHMS: dict[str, type[Algorithm]] = {"ppo": PPO, "ddpg": DDPG, "td3": TD3}
+ALGORITHMS: dict[str, type[Algorithm]] = {"ppo": PPO, "ddpg": DDPG, "td3": TD3, "sac": SAC}
 """``agent.name`` → the algorithm it trains."""
 
 __all__ = ["ALGORITHMS", "Algorithm", "create"]

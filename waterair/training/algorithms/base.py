@@ -48,6 +48,8 @@ class Algorithm(ABC):
     """Whether it learns only from the batch its own policy just collected (the buffer then holds that batch)."""
     loss_target: ClassVar[str]
     """The TorchRL loss class it instantiates, which ``agent.loss._target_`` must name."""
+    logged: ClassVar[tuple[str, ...]] = ()
+    """The tags of what each update returns after its (actor, critic) losses, logged as the batch's means."""
 
     def __init__(self, cfg: DictConfig) -> None:
         self.cfg = cfg
@@ -77,7 +79,7 @@ class Algorithm(ABC):
     @abstractmethod
     def make_update(self, loss, target_update, optim_actor, optim_critic) -> Update:
         """One gradient step on a sampled batch (compiled with ``compile_update``): the detached losses,
-        (actor, critic) and any further entry the algorithm logs."""
+        (actor, critic), then an entry for each of :attr:`logged`."""
 
     @abstractmethod
     def make_learn(self, loss, update: Update, buffer: TensorDictReplayBuffer, noise: torch.nn.Module) -> Learn:

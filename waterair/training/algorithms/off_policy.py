@@ -59,6 +59,8 @@ class OffPolicy(Algorithm):
     on_policy = False
     value_loss: ClassVar[str]
     """The loss entry of the critic(s)."""
+    annealed_noise: ClassVar[bool] = True
+    """Whether its exploration noise is the ``noise`` group's annealed module (else a learned part of the policy)."""
 
     @property
     @abstractmethod
@@ -104,9 +106,10 @@ class OffPolicy(Algorithm):
     def make_optimisers(self, loss):
         return adam(self.cfg, loss.actor_network_params, getattr(loss, self.value_params))
 
-    def loss_terms(self, loss) -> Callable[[TensorDict], tuple[torch.Tensor, torch.Tensor]]:
-        """The (actor, critic) losses of a batch: the loss module's own (its other outputs, pred_value and the
-        like, still require grad and are left out)."""
+    def loss_terms(self, loss) -> Callable[[TensorDict], tuple[torch.Tensor, ...]]:
+        """The (actor, critic) losses of a batch, then one entry for each of :attr:`logged` (those that require
+        grad step with the actor): the loss module's own (its other outputs, pred_value and the like, still require
+        grad and are left out)."""
         value_key = self.value_loss
 
         def terms(batch: TensorDict) -> tuple[torch.Tensor, torch.Tensor]:
@@ -117,14 +120,15 @@ class OffPolicy(Algorithm):
 
     def make_update(self, loss, target_update, optim_actor, optim_critic) -> Update:
         """One backward of the critic's and (every ``policy_delay`` updates) the actor's loss (:meth:`loss_terms`),
-        both optimisers' steps, then the soft target update; returns the (actor, critic) losses as a detached
-        ``[2]`` tensor."""
+        with the logged terms that require grad, both optimisers' steps, then the soft target update; returns the
+        (actor, critic) losses and the logged terms as a detached tensor."""
         terms, policy_delay = self.loss_terms(loss), self.policy_delay
 
         def update(batch: TensorDict, count: int) -> torch.Tensor:
-            actor_loss, value_loss = terms(batch)
+            actor_loss, value_loss, *logged = terms(batch)
             update_actor = count % policy_delay == 0
-            total = value_loss + (actor_loss if update_actor else 0.0)
+            stepped = sum((term for term in logged if term.requires_grad), actor_loss)
+            total = value_loss + (stepped if update_actor else 0.0)
             optim_actor.zero_grad(set_to_none=True)
             optim_critic.zero_grad(set_to_none=True)
             total.backward()
@@ -134,22 +138,26 @@ class OffPolicy(Algorithm):
             target_update.step()
             # Detached, not .item(): no host synchronisation (and no graph break) per update; the loop
             # turns a whole batch of these into numbers once.
-            return torch.stack((actor_loss, value_loss)).detach()
+            return torch.stack((actor_loss, value_loss, *logged)).detach()
 
         return torch.compile(update) if self.cfg.compile_update else update
 
     def make_learn(self, loss, update: Update, buffer, noise) -> Learn:
-        """Anneal the noise, store the batch's transitions, then take ``collector.updates_per_frame`` × its
-        frames updates, each on a sample of the whole replay; none before ``collector.init_random_frames``
-        (uniform random actions) or while the replay holds less than one sample. The replay does not change
-        between a batch's updates, so their samples (uniform, with replacement) are drawn in one call and split:
-        the same distribution as one call each, without 0.3 ms of sampling per eager update."""
+        """Anneal the noise (:attr:`annealed_noise`), store the batch's transitions, then take
+        ``collector.updates_per_frame`` × its frames updates, each on a sample of the whole replay; none before
+        ``collector.init_random_frames`` (uniform random actions) or while the replay holds less than one sample.
+        The replay does not change between a batch's updates, so their samples (uniform, with replacement) are
+        drawn in one call and split: the same distribution as one call each, without 0.3 ms of sampling per eager
+        update."""
         per_batch = updates_per_batch(self.cfg)
         steps_per_batch = self.cfg.collector.frames_per_batch // self.cfg.env.num_envs
         random_frames, batch_size = self.cfg.collector.init_random_frames, self.cfg.buffer.batch_size
 
+        annealed = self.annealed_noise
+
         def learn(batch: TensorDictBase, progress: Counters) -> list[torch.Tensor]:
-            noise.step(steps_per_batch)
+            if annealed:
+                noise.step(steps_per_batch)
             buffer.extend(batch.select(*TRANSITION_KEYS).reshape(-1))
             if progress.frames < random_frames or len(buffer) < batch_size:
                 return []

@@ -29,6 +29,7 @@ class PPO(Algorithm):
 
     on_policy = True
     loss_target = "torchrl.objectives.ClipPPOLoss"
+    logged = ("loss/kl",)
 
     @classmethod
     def check(cls, cfg: DictConfig) -> None:
