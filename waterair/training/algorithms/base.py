@@ -20,6 +20,8 @@ from torchrl.data import TensorDictReplayBuffer
 from torchrl.modules import ValueOperator
 from torchrl.objectives import LossModule, SoftUpdate
 
+from waterair.core.validation import check_range
+
 Update = Callable[[TensorDict, int], torch.Tensor]
 """One gradient step on a sampled batch, given the updates so far: the detached losses."""
 
@@ -84,6 +86,17 @@ class Algorithm(ABC):
     @abstractmethod
     def make_learn(self, loss, update: Update, buffer: TensorDictReplayBuffer, noise: torch.nn.Module) -> Learn:
         """What the loop does with each collected batch: ``learn(batch, progress)`` → the update losses."""
+
+
+def check_learned_noise(cfg: DictConfig) -> None:
+    """For an algorithm that learns its Gaussian policy's scale from ``noise.sigma_init``: the ``noise`` group must be
+    a constant Gaussian (nothing anneals a learned scale)."""
+    if cfg.noise.name != "gaussian" or cfg.noise.sigma_end != cfg.noise.sigma_init:
+        raise ValueError(
+            f"agent={cfg.agent.name} learns its action noise, starting at noise.sigma_init; noise={cfg.noise.name} "
+            f"with sigma_end = {cfg.noise.sigma_end} is not allowed (use noise=gaussian with sigma_end = sigma_init)"
+        )
+    check_range("noise.sigma_init", cfg.noise.sigma_init, 0.0, 10.0, low_open=True)
 
 
 def updates_per_batch(cfg: DictConfig) -> int:

@@ -18,7 +18,15 @@ from torchrl.objectives import ValueEstimators
 
 from waterair.agents.networks import make_gaussian_policy, make_value
 from waterair.core.validation import check_choice, check_int, check_range
-from waterair.training.algorithms.base import Algorithm, Counters, Learn, Update, adam, updates_per_batch
+from waterair.training.algorithms.base import (
+    Algorithm,
+    Counters,
+    Learn,
+    Update,
+    adam,
+    check_learned_noise,
+    updates_per_batch,
+)
 
 CRITIC_LOSSES = ("l1", "l2", "smooth_l1")
 """``ClipPPOLoss``'s ``loss_critic_type`` values."""
@@ -49,12 +57,7 @@ class PPO(Algorithm):
             raise ValueError(
                 "agent.policy_weights = 'average' is not allowed with agent=ppo (no target actor); use last"
             )
-        if cfg.noise.name != "gaussian" or cfg.noise.sigma_end != cfg.noise.sigma_init:
-            raise ValueError(
-                f"agent=ppo learns its action noise, starting at noise.sigma_init; noise={cfg.noise.name} with "
-                f"sigma_end = {cfg.noise.sigma_end} is not allowed (use noise=gaussian with sigma_end = sigma_init)"
-            )
-        check_range("noise.sigma_init", cfg.noise.sigma_init, 0.0, 10.0, low_open=True)
+        check_learned_noise(cfg)
         check_int("buffer.batch_size", cfg.buffer.batch_size, 1, cfg.collector.frames_per_batch)
         if cfg.checkpoint.keep_buffer:
             raise ValueError(

@@ -18,6 +18,7 @@ from tensordict import TensorDict
 
 from waterair.agents.networks import make_gaussian_policy
 from waterair.core.validation import check_choice, check_range
+from waterair.training.algorithms.base import check_learned_noise
 from waterair.training.algorithms.off_policy import OffPolicy
 
 SAC_LOSSES = ("l1", "l2", "smooth_l1")
@@ -47,12 +48,7 @@ class SAC(OffPolicy):
                 "agent=sac saves the actor it learns (agent.policy_weights = last, agent.loss.delay_actor = false): "
                 f"got agent.policy_weights = {agent.policy_weights!r}, agent.loss.delay_actor = {loss.delay_actor}"
             )
-        if cfg.noise.name != "gaussian" or cfg.noise.sigma_end != cfg.noise.sigma_init:
-            raise ValueError(
-                f"agent=sac learns its action noise, starting at noise.sigma_init; noise={cfg.noise.name} with "
-                f"sigma_end = {cfg.noise.sigma_end} is not allowed (use noise=gaussian with sigma_end = sigma_init)"
-            )
-        check_range("noise.sigma_init", cfg.noise.sigma_init, 0.0, 10.0, low_open=True)
+        check_learned_noise(cfg)
 
     def make_exploration(self, actor, env, device):
         """The Gaussian policy around ``actor`` (:func:`make_gaussian_policy`); its noise module is the learned
