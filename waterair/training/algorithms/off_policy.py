@@ -152,7 +152,6 @@ class OffPolicy(Algorithm):
         per_batch = updates_per_batch(self.cfg)
         steps_per_batch = self.cfg.collector.frames_per_batch // self.cfg.env.num_envs
         random_frames, batch_size = self.cfg.collector.init_random_frames, self.cfg.buffer.batch_size
-
         annealed = self.annealed_noise
 
         def learn(batch: TensorDictBase, progress: Counters) -> list[torch.Tensor]:
