@@ -46,7 +46,10 @@ LEARNED_STYLES = (
     ("tab:cyan", "*", "-", 2.2),
     ("tab:olive", "h", "-", 2.2),
 )
-"""Learned policies: solid and thick, told apart by colour and marker."""
+"""Learned policies: thick, told apart by colour and marker; past these four, each round of them by its dashes
+(:data:`LEARNED_DASHES`)."""
+LEARNED_DASHES = ("-", (0, (6, 2)), (0, (1, 1.5)), (0, (6, 2, 1, 2)))
+"""The learned styles' line styles, one per round of :data:`LEARNED_STYLES`: sixteen learned policies apart."""
 BER_FLOOR = 1e-12
 """BER figures draw a BER below it (down to 0 in float64 on a well aligned step) at it."""
 MARKS_PER_TRACE = 12
@@ -375,7 +378,9 @@ def _style(result, policy: dict) -> tuple:
         styles = STYLES if policy["label"] == name else SENSING_STYLES
         return styles.get(name, ("tab:olive", "1", "-", 1.2))
     learned = [p["label"] for p in result.policies if p["kind"] == "learned"]
-    return LEARNED_STYLES[learned.index(policy["label"]) % len(LEARNED_STYLES)]
+    index = learned.index(policy["label"])
+    colour, marker, _, width = LEARNED_STYLES[index % len(LEARNED_STYLES)]
+    return colour, marker, LEARNED_DASHES[index // len(LEARNED_STYLES) % len(LEARNED_DASHES)], width
 
 
 def _save_with_legend(fig, ax, path: Path) -> Path:
