@@ -22,6 +22,7 @@ from waterair.physics.link import link_performance  # noqa: E402
 STYLES = {
     "bound": ("black", "o", (0, (6, 3)), 1.6),
     "tracking": ("tab:purple", "v", ":", 1.4),
+    "prediction_bound": ("mediumorchid", "2", (0, (3, 1, 1, 1)), 1.5),
     "beacon_tracker": ("darkgoldenrod", "X", (0, (8, 2)), 1.7),
     "beacon_predictor": ("teal", "H", (0, (6, 1, 1, 1, 1, 1)), 1.7),
     "kalman_tracker": ("navy", "1", (0, (10, 2, 1, 2)), 1.7),

@@ -13,9 +13,11 @@ from waterair.envs.baselines import BASELINES
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import CONTROLLERS
 from waterair.envs.env import WaterAirEnv
+from waterair.envs.prediction import PredictionBound
 
-REFERENCES = {**BASELINES, **CONTROLLERS}
-"""Everything ``baselines`` may name: the model-based baselines and the classical controllers."""
+REFERENCES = {**BASELINES, PredictionBound.name: PredictionBound, **CONTROLLERS}
+"""Everything ``baselines`` may name: the model-based baselines, the prediction bound and the classical
+controllers."""
 TRACE_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid")
 
 
@@ -72,7 +74,7 @@ def reference_name(member) -> str | None:
     return member if isinstance(member, str) else member.name if isinstance(member, Sensed) else None
 
 
-KINEMATIC = ("tracking",)
+KINEMATIC = ("tracking", "prediction_bound")
 """The kinematic references: they point where they command, whatever the ends' actuators (``env.actuated``)."""
 
 
@@ -85,6 +87,14 @@ def kinematic(config: EnvConfig, members) -> tuple | None:
     ways = [dict(way) for way in config.replica_actions or [()] * len(members)]
     return tuple({**way, "actuated": False} if reference_name(m) in KINEMATIC else way
                  for way, (_, m) in zip(ways, members, strict=True))  # fmt: skip
+
+
+def build_reference(name: str, env: WaterAirEnv, config: EnvConfig, steps: int) -> TensorDictModuleBase:
+    """The baseline or controller ``name`` acting in ``env`` as ``config`` says, for a rollout of ``steps``: the
+    prediction bound is calibrated over as many."""
+    if name == PredictionBound.name:
+        return PredictionBound(env, config=config, steps=steps)
+    return REFERENCES[name](env, config=config)
 
 
 def rollout_policies(env_config: EnvConfig, members, points, realisations: int, steps: int, seed: int) -> dict:
@@ -116,7 +126,7 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
     )
     configs = env.config.replica_configs()  # each replica's own sensing, for the controllers that read it
     policies = [
-        REFERENCES[name](env, config=configs[k]) if (name := reference_name(policy)) else policy
+        build_reference(name, env, configs[k], steps) if (name := reference_name(policy)) else policy
         for k, (_, policy) in enumerate(members)
     ]
     env.set_seed(seed)

@@ -1,0 +1,188 @@
+"""The prediction bound: the exact path's pointing carried over the loop's one step of delay by the best linear
+predictor of its own past (docs/environment.md, "Baselines").
+
+``tracking`` points each end along the exact path of the step before: it knows the path perfectly and one step
+late. What a controller could win back of that step by predicting from the path's past is bounded, among linear
+predictors, by the one of least mean-square error, which depends only on the process's second-order statistics:
+the sea's spectrum and the ends' motion processes. This reference is that oracle. Its coefficients solve the
+normal equations (Wiener-Hopf, as least squares; Brockwell and Davis, *Time Series: Theory and Methods*, Springer
+1991, §5.1) with the statistics estimated on calibration links of the same configuration and seeds of their own
+(:data:`CALIBRATION_SEED`), per scenario point (link i is point i mod P, :mod:`waterair.envs.draws`).
+
+The state s_t is the four tilts (v_x, v_y) the exact path gives the transmitter and the receiver. The predictor
+forecasts its next move from the last :data:`ORDER` moves of all four, their offset from the calm-sea path's
+tilts and a constant:
+
+    ŝ_{t+1} = s_t + W_g [s_t − s_{t−1}, …, s_{t−ORDER+1} − s_{t−ORDER}, s_t − s̄_t, 1]
+
+so a path that stands still is predicted to stay (its moves are zero: it points as ``tracking`` does), and
+``tracking`` (W = 0) is among the predictors it chooses from. A spectrum describes a smooth, Gaussian process; the
+exact path also jumps where the light moves to another refraction point, which no linear predictor foresees and
+which, extrapolated, throws the beam off on the next step. So the predictor is fitted and used on stretches whose
+last ORDER moves of each end are all within :data:`GATE` times the median move (:func:`smooth`), and points as
+``tracking`` does after a jump, as it does where a link has fewer than ORDER + 1 valid paths since its reset.
+Like ``tracking`` it is kinematic: it points in the world where it commands, through neither the actuators nor
+an attitude.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from waterair.envs.baselines import FlatSeaSnell, PreviousPathTracking
+from waterair.envs.env import WaterAirEnv
+from waterair.envs.operating_point import PER_LINK
+from waterair.physics.channel import pointing
+from waterair.physics.optics import unit_vector
+
+ORDER = 4
+"""The past moves the predictor reads (steps). Of 1, 2, 4 and 8, 4 held the most on still and crossing ends."""
+CALIBRATION_SEED = 987_654_321
+"""The calibration links' seed: none of the evaluation's scenario seeds nor a training seed."""
+CALIBRATION_LINKS = 16
+"""Calibration links per scenario point."""
+CALIBRATION_STEPS = 2000
+"""The most steps a calibration link runs."""
+GATE = 3.0
+"""A jump: a move of an end beyond GATE times the median move (of 2, 3, 4 and none, 3 held the most)."""
+RCOND = 1e-10
+"""The least-squares fit's cut on singular values, relative to the largest: directions the samples leave open."""
+
+
+def tilts(departure: torch.Tensor, arrival: torch.Tensor) -> torch.Tensor:
+    """The tilts ``[..., 4]`` (transmitter's v_x, v_y, then the receiver's) of pointing along a path that leaves
+    the transmitter along ``departure`` and reaches the receiver along ``arrival`` (unit vectors ``[..., 3]``)."""
+    return torch.cat((departure[..., :2], -arrival[..., :2]), dim=-1)
+
+
+def features(history: torch.Tensor, calm: torch.Tensor) -> torch.Tensor:
+    """The predictor's inputs ``[..., 4 ORDER + 5]`` from the last ORDER + 1 states ``history`` ``[..., ORDER + 1,
+    4]`` (newest first) and the calm-sea tilts ``calm`` ``[..., 4]`` now."""
+    moves = (history[..., :-1, :] - history[..., 1:, :]).flatten(-2)
+    one = torch.ones_like(calm[..., :1])
+    return torch.cat((moves, history[..., 0, :] - calm, one), dim=-1)
+
+
+def fit(states: torch.Tensor, calm: torch.Tensor, valid: torch.Tensor, groups: torch.Tensor, count: int):
+    """The predictor's coefficients ``[count, 4, 4 ORDER + 5]`` and its gates ``[count]`` (rad; inf where the paths
+    never move), float64 on the CPU, per group, from calibration sequences: ``states`` and ``calm`` ``[B, T, 4]``,
+    ``valid`` ``[B, T]`` (whether each step's path was found) and each sequence's group ``groups`` ``[B]`` (long,
+    < ``count``). A sample is a step whose ORDER + 2 paths (the history and the next) are all valid and
+    :func:`smooth` (jumps are no part of the spectrum's process); each group's least-squares fit of the next move,
+    of least norm where the samples leave it open (an SVD with the features scaled alike, singular values below
+    :data:`RCOND` of the largest dropped): a process that never moves gets W = 0."""
+    states, calm, valid, groups = (v.detach().cpu() for v in (states.double(), calm.double(), valid, groups))
+    window = ORDER + 2
+    if states.shape[1] < window:
+        raise ValueError(f"calibration sequences of {states.shape[1]} steps; the predictor needs {window}")
+    past = states.unfold(1, window, 1).flip(-1).transpose(-1, -2)  # [B, S, ORDER + 2, 4], newest first
+    x = features(past[:, :, 1:], calm[:, window - 2 : -1])
+    y = past[:, :, 0] - past[:, :, 1]
+    usable = valid.unfold(1, window, 1).all(-1)  # [B, S]
+    weights = torch.zeros(count, 4, x.shape[-1], dtype=torch.float64)
+    gates = torch.full((count,), math.inf, dtype=torch.float64)
+    for group in range(count):
+        chosen = usable & (groups == group).unsqueeze(-1)
+        if chosen.any():
+            typical = end_moves(y[chosen]).median()
+            gates[group] = GATE * typical if typical > 0 else math.inf
+            chosen = chosen & smooth(past, gates[group])  # the spectrum's smooth process: no jump, the next's
+        inputs, moves = x[chosen], y[chosen]
+        if not inputs.shape[0]:
+            continue  # no sample: tracking
+        scale = inputs.square().mean(0).sqrt()
+        scale = torch.where(scale > 0, scale, torch.ones_like(scale))
+        solution = torch.linalg.lstsq(inputs / scale, moves, rcond=RCOND, driver="gelsd").solution
+        weights[group] = (solution / scale.unsqueeze(-1)).T
+    return weights, gates
+
+
+def end_moves(moves: torch.Tensor) -> torch.Tensor:
+    """Each end's move (the norm of its tilts' change) ``[..., 2]`` from the four tilts' ``moves`` ``[..., 4]``."""
+    return torch.linalg.vector_norm(moves.unflatten(-1, (2, 2)), dim=-1)
+
+
+def smooth(history: torch.Tensor, gate) -> torch.Tensor:
+    """Whether every move of either end in ``history`` ``[..., ORDER + 1, 4]`` is within ``gate``."""
+    return (end_moves(history[..., :-1, :] - history[..., 1:, :]) <= gate).flatten(-2).all(-1)
+
+
+def point_count(config) -> int:
+    """The scenario points ``config``'s links cycle through: the least common multiple of its ``<name>_values``'
+    lengths (1 where every link draws or takes one value)."""
+    lengths = [len(values) for name in PER_LINK if (values := getattr(config, f"{name}_values")) is not None]
+    return math.lcm(*lengths) if lengths else 1
+
+
+class PredictionBound(PreviousPathTracking):
+    """``tracking`` carried one step ahead by the optimal linear predictor of each end's exact pointing (this
+    module's docstring): what prediction from the path's past could win over tracking's step of delay. Fitted at
+    construction on calibration links of its configuration (:data:`CALIBRATION_LINKS` per point, eager, on
+    :data:`CALIBRATION_SEED`) over the ``steps`` it will act for from a reset (None: a whole episode; at most
+    :data:`CALIBRATION_STEPS`), so that a drone crossing the link is calibrated where it crosses; it keeps each
+    link's last ORDER + 1 states."""
+
+    name = "prediction_bound"
+
+    def __init__(self, env, config=None, steps: int | None = None):
+        super().__init__(env, config)
+        self.points = point_count(self.config)
+        self.coefficients, self.gates = (each.to(env.device) for each in self._calibrate(steps))
+        self.history: torch.Tensor | None = None  # [n, ORDER + 1, 4], newest first
+        self.known: torch.Tensor | None = None  # [n]: the consecutive valid paths in it since the reset
+
+    def _calibrate(self, steps: int | None) -> tuple[torch.Tensor, torch.Tensor]:
+        config = self.config.replace(
+            num_envs=self.points * CALIBRATION_LINKS,
+            replicas=1,
+            replica_actions=None,
+            replica_sensing=None,
+            compile_kernel=False,
+            seed=CALIBRATION_SEED,
+        )
+        env = WaterAirEnv(config)
+        env.set_seed(CALIBRATION_SEED)
+        with torch.no_grad():
+            steps = min(steps or config.max_steps, config.max_steps, CALIBRATION_STEPS)
+            rollout = env.rollout(steps, PreviousPathTracking(env), break_when_any_done=False)
+        keys = ("departure", "arrival", "path_valid", "tx_position", "rx_position", "flat_point")
+        every = {key: torch.cat((rollout[key][:, :1], rollout["next", key]), dim=1) for key in keys}
+        states = tilts(every["departure"], every["arrival"])
+        calm = self._calm(every["tx_position"], every["rx_position"], every["flat_point"])
+        groups = torch.arange(config.num_envs, device=states.device) % self.points
+        return fit(states, calm, every["path_valid"].squeeze(-1).bool(), groups, self.points)
+
+    @staticmethod
+    def _calm(tx: torch.Tensor, rx: torch.Tensor, flat: torch.Tensor) -> torch.Tensor:
+        """The tilts ``[..., 4]`` of pointing both ends along the calm sea's path through ``flat``."""
+        return tilts(unit_vector(flat - tx), unit_vector(rx - flat))
+
+    def _steps(self, rows: int) -> torch.Tensor:
+        steps = self.env.state.steps
+        if rows not in (steps.shape[0], steps.shape[0] // self.env.config.replicas):
+            raise ValueError(f"prediction_bound acts on its environment's {steps.shape[0]} links or one replica's")
+        return steps[:rows]  # replicas reset together
+
+    def directions(self, tensordict):
+        flat_tx, flat_rx = FlatSeaSnell.directions(self, tensordict)
+        valid = tensordict.get("path_valid").reshape(-1).bool()
+        state = tilts(tensordict.get("departure"), tensordict.get("arrival")).double()
+        rows = state.shape[0]
+        started = self._steps(rows) == 0
+        if self.history is None or self.history.shape[0] != rows:
+            self.history = state.unsqueeze(1).expand(rows, ORDER + 1, 4).clone()
+            self.known = torch.zeros(rows, dtype=torch.long, device=state.device)
+        assert self.known is not None
+        self.history = torch.cat((state.unsqueeze(1), self.history[:, :-1]), dim=1)
+        self.known = torch.where(valid & ~started, self.known + 1, valid.long())
+        calm = torch.cat((flat_tx[:, :2], flat_rx[:, :2]), dim=-1).double()
+        groups = torch.arange(rows, device=state.device) % self.points
+        weights = self.coefficients[groups]  # [n, 4, F]
+        ahead = state + (weights @ features(self.history, calm).unsqueeze(-1)).squeeze(-1)
+        ready = (self.known > ORDER) & smooth(self.history, self.gates[groups][:, None, None])
+        predicted = torch.where(ready.unsqueeze(-1), ahead, state).to(flat_tx.dtype)
+        tx, rx = pointing(predicted[:, :2], up=True), pointing(predicted[:, 2:], up=False)
+        found = valid.unsqueeze(-1)
+        return torch.where(found, tx, flat_tx), torch.where(found, rx, flat_rx)
