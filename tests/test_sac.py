@@ -11,6 +11,7 @@ import torch
 from conftest import compose_config
 from tensordict import TensorDict
 from torchrl.data import Bounded, Composite, Unbounded
+from torchrl.objectives import SACLoss
 
 from waterair.agents.networks import make_actor
 from waterair.training.algorithms.sac import SAC
@@ -110,3 +111,31 @@ def test_a_bad_sac_key_names_itself(override, message):
 
 def test_the_auto_target_entropy_is_minus_one_per_action_component():
     assert math.isclose(trained(0.1, updates=1)[3], -2.0)
+
+
+def built(gamma: float):
+    """SAC's loss as the loop builds it on the toy bandit at discount ``gamma``, its networks seeded alike."""
+    cfg = compose_config("config", ["agent=sac", f"agent.gamma={gamma}", "actor.hidden=[16,16]",
+                                    "critic.hidden=[16,16]", "compile_update=false"])  # fmt: skip
+    validate(cfg)
+    torch.manual_seed(0)
+    env, algorithm = toy_env(), SAC(cfg)
+    actor = make_actor(3, 2, cfg.actor.hidden, cfg.actor.activation, cfg.actor.zero_output)
+    exploration, _ = algorithm.make_exploration(actor, env, "cpu")
+    return algorithm.make_loss(actor, exploration, algorithm.make_critic(env, "cpu"), env)[0]
+
+
+def test_at_discount_zero_the_critics_target_is_the_reward_without_the_next_states_work():
+    """What TorchRL's SACLoss computes at discount 0, r + 0 · V(s') with the next state's actions and target
+    critics, is the reward, which the loss now takes as it is: the same target and critic loss to the bit; at
+    another discount the loss computes its target as TorchRL does."""
+    loss = built(0.0)
+    batch = toy_batch(torch.Generator().manual_seed(2))
+    assert "_compute_target_v2" in vars(loss)  # this loss's own target
+    theirs = SACLoss._compute_target_v2(loss, batch)
+    assert torch.equal(loss._compute_target_v2(batch), theirs)
+    assert torch.equal(theirs, batch["next", "reward"].squeeze(-1))
+    ours_loss = loss.qvalue_v2_loss(batch)[0]
+    del loss._compute_target_v2
+    assert torch.equal(ours_loss, loss.qvalue_v2_loss(batch)[0])
+    assert "_compute_target_v2" not in vars(built(0.9))

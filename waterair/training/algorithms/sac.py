@@ -11,6 +11,7 @@ estimator at ``agent.gamma`` and a ``SoftUpdate`` of the target critics at rate 
 from __future__ import annotations
 
 from collections.abc import Callable
+from types import MethodType
 
 import torch
 from omegaconf import DictConfig
@@ -58,8 +59,12 @@ class SAC(OffPolicy):
         return policy, policy.module[0].module[1]
 
     def make_loss(self, actor, exploration, critic, env):
-        """:class:`OffPolicy`'s loss of the stochastic ``exploration`` policy (SAC's actor is the distribution)."""
-        return super().make_loss(exploration, exploration, critic, env)
+        """:class:`OffPolicy`'s loss of the stochastic ``exploration`` policy (SAC's actor is the distribution); at
+        discount 0 its critics' target is the reward alone (:func:`myopic_target`)."""
+        loss, target_update = super().make_loss(exploration, exploration, critic, env)
+        if self.cfg.agent.gamma == 0:
+            loss._compute_target_v2 = MethodType(myopic_target, loss)
+        return loss, target_update
 
     def loss_options(self, env) -> dict:
         """Its ``auto`` target entropy counts the action spec's components."""
@@ -82,3 +87,10 @@ class SAC(OffPolicy):
                     losses["entropy"])  # fmt: skip
 
         return terms
+
+
+def myopic_target(loss, tensordict: TensorDict) -> torch.Tensor:
+    """The critics' TD(0) target at discount 0, ``[B]``: r + 0 · V(s') is r, so the next state's actions and the
+    target critics' values, which ``SACLoss`` computes whatever the discount (half the update's forward work),
+    are skipped. Bound to a loss in place of its ``_compute_target_v2``; the same numbers (a test)."""
+    return tensordict.get(("next", loss.tensor_keys.reward)).squeeze(-1)
