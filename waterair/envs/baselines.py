@@ -32,6 +32,12 @@ class PointingPolicy(TensorDictModuleBase):
         self.config = config or env.config
         """The configuration of the replica it acts in (``EnvConfig.replica_configs``): its sensing."""
 
+    @classmethod
+    def for_rollout(cls, env: WaterAirEnv, config: EnvConfig, steps: int) -> PointingPolicy:
+        """The policy acting in ``env`` as ``config`` (its replica's) says, for a rollout of ``steps`` from a reset:
+        what the evaluation builds; a policy that prepares for the rollout's length overrides it."""
+        return cls(env, config=config)
+
     def directions(self, tensordict: TensorDictBase) -> tuple[torch.Tensor, torch.Tensor]:
         """Unit transmitter (up) and receiver (down) pointing, each ``[B, 3]``."""
         raise NotImplementedError

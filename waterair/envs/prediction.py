@@ -57,12 +57,16 @@ def tilts(departure: torch.Tensor, arrival: torch.Tensor) -> torch.Tensor:
     return torch.cat((departure[..., :2], -arrival[..., :2]), dim=-1)
 
 
+def moves(history: torch.Tensor) -> torch.Tensor:
+    """The moves ``[..., K − 1, 4]`` between the states ``history`` ``[..., K, 4]`` (newest first), newest first."""
+    return history[..., :-1, :] - history[..., 1:, :]
+
+
 def features(history: torch.Tensor, calm: torch.Tensor) -> torch.Tensor:
     """The predictor's inputs ``[..., 4 ORDER + 5]`` from the last ORDER + 1 states ``history`` ``[..., ORDER + 1,
     4]`` (newest first) and the calm-sea tilts ``calm`` ``[..., 4]`` now."""
-    moves = (history[..., :-1, :] - history[..., 1:, :]).flatten(-2)
     one = torch.ones_like(calm[..., :1])
-    return torch.cat((moves, history[..., 0, :] - calm, one), dim=-1)
+    return torch.cat((moves(history).flatten(-2), history[..., 0, :] - calm, one), dim=-1)
 
 
 def fit(states: torch.Tensor, calm: torch.Tensor, valid: torch.Tensor, groups: torch.Tensor, count: int):
@@ -79,7 +83,7 @@ def fit(states: torch.Tensor, calm: torch.Tensor, valid: torch.Tensor, groups: t
         raise ValueError(f"calibration sequences of {states.shape[1]} steps; the predictor needs {window}")
     past = states.unfold(1, window, 1).flip(-1).transpose(-1, -2)  # [B, S, ORDER + 2, 4], newest first
     x = features(past[:, :, 1:], calm[:, window - 2 : -1])
-    y = past[:, :, 0] - past[:, :, 1]
+    y = moves(past[:, :, :2])[:, :, 0]
     usable = valid.unfold(1, window, 1).all(-1)  # [B, S]
     weights = torch.zeros(count, 4, x.shape[-1], dtype=torch.float64)
     gates = torch.full((count,), math.inf, dtype=torch.float64)
@@ -89,24 +93,24 @@ def fit(states: torch.Tensor, calm: torch.Tensor, valid: torch.Tensor, groups: t
             typical = end_moves(y[chosen]).median()
             gates[group] = GATE * typical if typical > 0 else math.inf
             chosen = chosen & smooth(past, gates[group])  # the spectrum's smooth process: no jump, the next's
-        inputs, moves = x[chosen], y[chosen]
+        inputs, targets = x[chosen], y[chosen]
         if not inputs.shape[0]:
             continue  # no sample: tracking
         scale = inputs.square().mean(0).sqrt()
         scale = torch.where(scale > 0, scale, torch.ones_like(scale))
-        solution = torch.linalg.lstsq(inputs / scale, moves, rcond=RCOND, driver="gelsd").solution
+        solution = torch.linalg.lstsq(inputs / scale, targets, rcond=RCOND, driver="gelsd").solution
         weights[group] = (solution / scale.unsqueeze(-1)).T
     return weights, gates
 
 
-def end_moves(moves: torch.Tensor) -> torch.Tensor:
-    """Each end's move (the norm of its tilts' change) ``[..., 2]`` from the four tilts' ``moves`` ``[..., 4]``."""
-    return torch.linalg.vector_norm(moves.unflatten(-1, (2, 2)), dim=-1)
+def end_moves(moved: torch.Tensor) -> torch.Tensor:
+    """Each end's move (the norm of its tilts' change) ``[..., 2]`` from the four tilts' ``moved`` ``[..., 4]``."""
+    return torch.linalg.vector_norm(moved.unflatten(-1, (2, 2)), dim=-1)
 
 
 def smooth(history: torch.Tensor, gate) -> torch.Tensor:
     """Whether every move of either end in ``history`` ``[..., ORDER + 1, 4]`` is within ``gate``."""
-    return (end_moves(history[..., :-1, :] - history[..., 1:, :]) <= gate).flatten(-2).all(-1)
+    return (end_moves(moves(history)) <= gate).flatten(-2).all(-1)
 
 
 def point_count(config) -> int:
@@ -133,6 +137,11 @@ class PredictionBound(PreviousPathTracking):
         self.history: torch.Tensor | None = None  # [n, ORDER + 1, 4], newest first
         self.known: torch.Tensor | None = None  # [n]: the consecutive valid paths in it since the reset
 
+    @classmethod
+    def for_rollout(cls, env, config, steps: int):
+        """Calibrated over the rollout's ``steps``."""
+        return cls(env, config=config, steps=steps)
+
     def _calibrate(self, steps: int | None) -> tuple[torch.Tensor, torch.Tensor]:
         config = self.config.replace(
             num_envs=self.points * CALIBRATION_LINKS,
@@ -157,7 +166,7 @@ class PredictionBound(PreviousPathTracking):
     @staticmethod
     def _calm(tx: torch.Tensor, rx: torch.Tensor, flat: torch.Tensor) -> torch.Tensor:
         """The tilts ``[..., 4]`` of pointing both ends along the calm sea's path through ``flat``."""
-        return tilts(unit_vector(flat - tx), unit_vector(rx - flat))
+        return tilts(unit_vector(flat - tx), -unit_vector(flat - rx))
 
     def _steps(self, rows: int) -> torch.Tensor:
         steps = self.env.state.steps
@@ -177,7 +186,7 @@ class PredictionBound(PreviousPathTracking):
         assert self.known is not None
         self.history = torch.cat((state.unsqueeze(1), self.history[:, :-1]), dim=1)
         self.known = torch.where(valid & ~started, self.known + 1, valid.long())
-        calm = torch.cat((flat_tx[:, :2], flat_rx[:, :2]), dim=-1).double()
+        calm = tilts(flat_tx, -flat_rx).double()  # as _calm's
         groups = torch.arange(rows, device=state.device) % self.points
         weights = self.coefficients[groups]  # [n, 4, F]
         ahead = state + (weights @ features(self.history, calm).unsqueeze(-1)).squeeze(-1)

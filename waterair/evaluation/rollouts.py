@@ -89,14 +89,6 @@ def kinematic(config: EnvConfig, members) -> tuple | None:
                  for way, (_, m) in zip(ways, members, strict=True))  # fmt: skip
 
 
-def build_reference(name: str, env: WaterAirEnv, config: EnvConfig, steps: int) -> TensorDictModuleBase:
-    """The baseline or controller ``name`` acting in ``env`` as ``config`` says, for a rollout of ``steps``: the
-    prediction bound is calibrated over as many."""
-    if name == PredictionBound.name:
-        return PredictionBound(env, config=config, steps=steps)
-    return REFERENCES[name](env, config=config)
-
-
 def rollout_policies(env_config: EnvConfig, members, points, realisations: int, steps: int, seed: int) -> dict:
     """Traces ``[R, P, T]`` (CPU) per member ``(label, policy or baseline name)``, all on the same seas.
 
@@ -126,7 +118,7 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
     )
     configs = env.config.replica_configs()  # each replica's own sensing, for the controllers that read it
     policies = [
-        build_reference(name, env, configs[k], steps) if (name := reference_name(policy)) else policy
+        REFERENCES[name].for_rollout(env, configs[k], steps) if (name := reference_name(policy)) else policy
         for k, (_, policy) in enumerate(members)
     ]
     env.set_seed(seed)
