@@ -82,6 +82,14 @@ def test_a_path_that_stands_still_is_predicted_to_stay_and_unusable_steps_are_le
     torch.testing.assert_close(garbled, clean, rtol=1e-9, atol=1e-12)
 
 
+def test_sequences_too_short_for_a_history_give_tracking():
+    """A rollout shorter than ORDER + 2 steps (a tiny scenario) calibrates nothing: W = 0, no gate."""
+    short = sinusoids(FREQUENCIES, 3, ORDER + 1, seed=9)
+    weights, gates = fit(short, torch.zeros_like(short), torch.ones(3, ORDER + 1, dtype=torch.bool),
+                         torch.zeros(3, dtype=torch.long), 1)  # fmt: skip
+    assert weights.shape == (1, 4, 4 * ORDER + 5) and not weights.any() and torch.isinf(gates).all()
+
+
 def test_jumps_between_refraction_points_neither_enter_the_fit_nor_are_extrapolated():
     """Sinusoids with a jump now and then (the light on another refraction point for a step): the gate is GATE
     times the median move, the windows with a jump are left out, and the predictor still forecasts the smooth

@@ -76,17 +76,18 @@ def fit(states: torch.Tensor, calm: torch.Tensor, valid: torch.Tensor, groups: t
     < ``count``). A sample is a step whose ORDER + 2 paths (the history and the next) are all valid and
     :func:`smooth` (jumps are no part of the spectrum's process); each group's least-squares fit of the next move,
     of least norm where the samples leave it open (an SVD with the features scaled alike, singular values below
-    :data:`RCOND` of the largest dropped): a process that never moves gets W = 0."""
+    :data:`RCOND` of the largest dropped): a process that never moves gets W = 0, as do sequences shorter than
+    ORDER + 2."""
     states, calm, valid, groups = (v.detach().cpu() for v in (states.double(), calm.double(), valid, groups))
     window = ORDER + 2
+    weights = torch.zeros(count, 4, 4 * ORDER + 5, dtype=torch.float64)
+    gates = torch.full((count,), math.inf, dtype=torch.float64)
     if states.shape[1] < window:
-        raise ValueError(f"calibration sequences of {states.shape[1]} steps; the predictor needs {window}")
+        return weights, gates  # a rollout too short to fill a history: every step points as tracking
     past = states.unfold(1, window, 1).flip(-1).transpose(-1, -2)  # [B, S, ORDER + 2, 4], newest first
     x = features(past[:, :, 1:], calm[:, window - 2 : -1])
     y = moves(past[:, :, :2])[:, :, 0]
     usable = valid.unfold(1, window, 1).all(-1)  # [B, S]
-    weights = torch.zeros(count, 4, x.shape[-1], dtype=torch.float64)
-    gates = torch.full((count,), math.inf, dtype=torch.float64)
     for group in range(count):
         chosen = usable & (groups == group).unsqueeze(-1)
         if chosen.any():
