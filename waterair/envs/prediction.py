@@ -187,7 +187,7 @@ class PredictionBound(PreviousPathTracking):
         assert self.known is not None
         self.history = torch.cat((state.unsqueeze(1), self.history[:, :-1]), dim=1)
         self.known = torch.where(valid & ~started, self.known + 1, valid.long())
-        calm = tilts(flat_tx, -flat_rx).double()  # as _calm's
+        calm = self._calm(*(tensordict.get(key) for key in ("tx_position", "rx_position", "flat_point"))).double()
         groups = torch.arange(rows, device=state.device) % self.points
         weights = self.coefficients[groups]  # [n, 4, F]
         ahead = state + (weights @ features(self.history, calm).unsqueeze(-1)).squeeze(-1)
