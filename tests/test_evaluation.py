@@ -474,7 +474,7 @@ def test_weights_that_do_not_fit_the_configured_network_are_a_clear_error(tmp_pa
     with pytest.raises(CheckpointError) as info:
         evaluate(eval_cfg(f"checkpoint={policy}"), progress=lambda _: None)
     assert str(info.value) == (
-        f"checkpoint {policy}: its actor has layers [16x8, 16x16, 4x16], but actor.hidden = [256, 256] "
+        f"checkpoint {policy}: its actor has layers [16x8, 16x16, 4x16], but actor=mlp with hidden = [256, 256] "
         "builds [256x8, 256x256, 4x256]"
     )
 

@@ -10,14 +10,15 @@ written atomically and read with ``torch.load(weights_only=True)``.
 from __future__ import annotations
 
 import zipfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import torch
-from tensordict.nn import TensorDictModule
+from tensordict.nn import TensorDictModule, TensorDictModuleBase
 
-from waterair.agents.networks import RowBlocks, make_actor
+from waterair.agents.networks import RowBlocks, actor_for
+from waterair.agents.recurrent import is_recurrent
 from waterair.core.files import atomic_write
 
 POLICY_FORMAT = "waterair-policy/1"
@@ -41,26 +42,30 @@ class PolicyFile:
     observation_size: int
     frames: int | None
 
-    def actor(self, hidden: Sequence[int], activation: str, observation_size: int | None = None) -> TensorDictModule:
-        """The actor network with these weights, in eval mode on the CPU.
+    def actor(self, network: Mapping, observation_size: int | None = None) -> TensorDictModuleBase:
+        """The actor network of the ``actor`` group's option ``network`` with these weights, in eval mode on the CPU.
 
         ``observation_size`` (the environment's) must equal the one the policy was trained with.
-        Raises :class:`CheckpointError` naming both sizes or both network shapes on a mismatch.
+        Raises :class:`CheckpointError` naming both sizes or both network shapes on a mismatch. An MLP acts on its
+        rows in blocks (:class:`RowBlocks`); a recurrent actor is stepped through
+        :class:`waterair.agents.recurrent.StepMemory`, which does the same.
         """
         if observation_size is not None and observation_size != self.observation_size:
             raise CheckpointError(
                 f"checkpoint {self.path}: trained with observations of size {self.observation_size}, but the "
                 f"environment gives {observation_size}; use the observation settings it was trained with"
             )
-        module = make_actor(self.observation_size, ACTION_SIZE, hidden, activation)
+        module = actor_for(network, self.observation_size, ACTION_SIZE)
         expected = {k: tuple(v.shape) for k, v in module.state_dict().items()}
         found = {k: tuple(v.shape) for k, v in self.actor_state.items()}
         if expected != found:
             raise CheckpointError(
-                f"checkpoint {self.path}: its actor has layers {_shapes(found)}, but actor.hidden = {list(hidden)} "
-                f"builds {_shapes(expected)}"
+                f"checkpoint {self.path}: its actor has layers {_shapes(found)}, but actor={network['name']} with "
+                f"hidden = {list(network['hidden'])} builds {_shapes(expected)}"
             )
         module.load_state_dict(self.actor_state)
+        if is_recurrent(module):
+            return module.eval()
         # in blocks of rows: a policy's actions on a link do not depend on the links beside it (RowBlocks)
         return TensorDictModule(RowBlocks(module.module), in_keys=module.in_keys, out_keys=module.out_keys).eval()
 

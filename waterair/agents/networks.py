@@ -7,14 +7,16 @@ The deterministic actor is what a policy file holds; an on-policy agent explores
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import torch
-from tensordict.nn import TensorDictModule
+from tensordict.nn import TensorDictModule, TensorDictModuleBase, TensorDictSequential
 from tensordict.nn.distributions.continuous import AddStateIndependentNormalScale
 from torch import nn
 from torchrl.data import Bounded
 from torchrl.modules import MLP, ProbabilisticActor, TanhNormal, ValueOperator
+
+from waterair.agents.recurrent import CELLS, make_recurrent_actor
 
 ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
 """Activation names accepted by ``actor.activation`` / ``critic.activation``."""
@@ -39,6 +41,16 @@ def make_actor(
         nn.init.zeros_(output.weight)
         nn.init.zeros_(output.bias)
     return TensorDictModule(nn.Sequential(mlp, nn.Tanh()), in_keys=["observation"], out_keys=["action"])
+
+
+def actor_for(network: Mapping, observation_size: int, action_size: int) -> TensorDictModuleBase:
+    """The actor of an ``actor`` group's option: ``mlp`` (:func:`make_actor`), or ``gru``/``lstm``, a recurrent
+    module of ``state_size`` × ``layers`` with that MLP on its features (:mod:`waterair.agents.recurrent`)."""
+    zero_output = bool(network.get("zero_output", False))
+    if network["name"] not in CELLS:
+        return make_actor(observation_size, action_size, network["hidden"], network["activation"], zero_output)
+    head = make_actor(network["state_size"], action_size, network["hidden"], network["activation"], zero_output)
+    return make_recurrent_actor(network["name"], observation_size, network["state_size"], network["layers"], head)
 
 
 class RowBlocks(nn.Module):
@@ -72,17 +84,20 @@ def make_critic(observation_size: int, action_size: int, hidden: Sequence[int], 
     return ValueOperator(net, in_keys=["observation", "action"])
 
 
-def make_gaussian_policy(actor: TensorDictModule, action_spec: Bounded, scale: float) -> ProbabilisticActor:
+def make_gaussian_policy(actor: TensorDictModuleBase, action_spec: Bounded, scale: float) -> ProbabilisticActor:
     """The stochastic policy around ``actor``: action = tanh(u), u ~ N(MLP(observation), σ²).
 
-    It shares the actor's MLP, so its deterministic action tanh(MLP(observation)) is the actor's; σ
-    is one learned scale per action component, independent of the state, starting at ``scale``
-    (action units). It writes the action's log-probability, which PPO's ratio needs.
+    It shares the actor's MLP (a recurrent actor's memory too), so its deterministic action tanh(MLP(observation))
+    is the actor's; σ is one learned scale per action component, independent of the state, starting at ``scale``
+    (action units; :func:`learned_scale`). It writes the action's log-probability, which PPO's ratio needs.
     """
-    mlp = actor.module[0]
+    *memory, last = actor if isinstance(actor, TensorDictSequential) else (actor,)
+    mlp = last.module[0]
     size = action_spec.shape[-1]
     head = AddStateIndependentNormalScale(size, scale_mapping="exp", init_value=math.log(scale))
-    module = TensorDictModule(nn.Sequential(mlp, head), in_keys=["observation"], out_keys=["loc", "scale"])
+    module = TensorDictModule(nn.Sequential(mlp, head), in_keys=list(last.in_keys), out_keys=["loc", "scale"])
+    if memory:
+        module = TensorDictSequential(*memory, module)
     return ProbabilisticActor(
         module,
         spec=action_spec,
@@ -91,6 +106,11 @@ def make_gaussian_policy(actor: TensorDictModule, action_spec: Bounded, scale: f
         distribution_kwargs={"low": -1.0, "high": 1.0},
         return_log_prob=True,
     )
+
+
+def learned_scale(policy: ProbabilisticActor) -> AddStateIndependentNormalScale:
+    """The learned σ of a :func:`make_gaussian_policy` policy."""
+    return next(m for m in policy.modules() if isinstance(m, AddStateIndependentNormalScale))
 
 
 def make_value(observation_size: int, hidden: Sequence[int], activation: str) -> ValueOperator:

@@ -75,7 +75,7 @@ class LearnedPolicy:
     def actor(self, actor_cfg: DictConfig, observation_size: int):
         """The actor network (CPU, eval mode): its training config's shape, else ``actor_cfg``'s."""
         network = self.config.actor if self.config else actor_cfg
-        return self.file.actor(network.hidden, network.activation, observation_size)
+        return self.file.actor(network, observation_size)
 
 
 def load_policy(path: str | Path, label: str | None = None) -> LearnedPolicy:

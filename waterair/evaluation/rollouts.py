@@ -9,6 +9,7 @@ import torch
 from tensordict.nn import TensorDictModuleBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
+from waterair.agents.recurrent import StepMemory, is_recurrent
 from waterair.envs.baselines import BASELINES
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import CONTROLLERS
@@ -94,8 +95,8 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
 
     The members run as replicas of one environment seeded with ``seed``, greedily (no exploration
     noise), over ``points`` (wind m/s, offset ratio, azimuth deg) × ``realisations`` links for
-    ``steps`` steps. The members read common sensor noise too (a link's, :mod:`waterair.envs.noise`), so
-    that each scores the same alone and beside others.
+    ``steps`` steps (one episode: a recurrent policy's state starts at zero). The members read common sensor
+    noise too (a link's, :mod:`waterair.envs.noise`), so that each scores the same alone and beside others.
     """
     links = len(points) * realisations
     winds, offsets, azimuths = zip(*points, strict=True)
@@ -118,7 +119,11 @@ def rollout_policies(env_config: EnvConfig, members, points, realisations: int, 
     )
     configs = env.config.replica_configs()  # each replica's own sensing, for the controllers that read it
     policies = [
-        REFERENCES[name].for_rollout(env, configs[k], steps) if (name := reference_name(policy)) else policy
+        REFERENCES[name].for_rollout(env, configs[k], steps)
+        if (name := reference_name(policy))
+        else StepMemory(policy)  # a recurrent policy's state, from zero at the rollout's start
+        if is_recurrent(policy)
+        else policy
         for k, (_, policy) in enumerate(members)
     ]
     env.set_seed(seed)

@@ -10,13 +10,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
-from tensordict.nn import TensorDictModule
+from tensordict.nn import TensorDictModuleBase
 from torchrl.collectors import Collector
 from torchrl.data import LazyMemmapStorage, LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
 from torchrl.envs import Compose, InitTracker, RewardSum, TransformedEnv
 
-from waterair.agents.networks import make_actor as build_actor
+from waterair.agents.networks import actor_for
+from waterair.agents.recurrent import CELLS, state_primer
 from waterair.envs.config import EnvConfig
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.link import link_budget
@@ -41,16 +42,20 @@ def make_reward(cfg: DictConfig, config: EnvConfig | None = None) -> Reward:
 
 
 def make_env(cfg: DictConfig) -> TransformedEnv:
-    """The batched environment with episode-reward and init tracking (the OU noise needs is_init)."""
+    """The batched environment with episode-reward and init tracking (the OU noise and a recurrent actor need
+    is_init), and a recurrent actor's state declared (zero at each reset)."""
     config = env_config(cfg)
     reward = make_reward(cfg, config)
-    return TransformedEnv(WaterAirEnv(config, reward=reward), Compose(InitTracker(), RewardSum()))
+    transforms = [InitTracker(), RewardSum()]
+    if cfg.actor.name in CELLS:
+        transforms.append(state_primer(cfg.actor.name, cfg.actor.state_size, cfg.actor.layers))
+    return TransformedEnv(WaterAirEnv(config, reward=reward), Compose(*transforms))
 
 
-def make_actor(cfg: DictConfig, env, device) -> TensorDictModule:
-    """Deterministic actor of the ``actor`` group: MLP(observation) → tanh → action in [-1, 1]."""
+def make_actor(cfg: DictConfig, env, device) -> TensorDictModuleBase:
+    """Deterministic actor of the ``actor`` group: [a recurrent module →] MLP → tanh → action in [-1, 1]."""
     sizes = env.observation_spec["observation"].shape[-1], env.action_spec.shape[-1]
-    return build_actor(*sizes, cfg.actor.hidden, cfg.actor.activation, cfg.actor.zero_output).to(device)
+    return actor_for(cfg.actor, *sizes).to(device)
 
 
 def memory_storage(buffer: DictConfig, capacity: int, run_dir: Path, device):

@@ -11,6 +11,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from waterair.agents.networks import ACTIVATIONS
+from waterair.agents.recurrent import CELLS
 from waterair.core.devices import resolve_device
 from waterair.core.threads import AUTO as AUTO_THREADS
 from waterair.core.threads import check_threads
@@ -29,6 +30,7 @@ POLICY_WEIGHTS = ("average", "last")
 NOISES = ("gaussian", "ou")
 BUFFERS = ("memory", "memmap")
 NETWORKS = ("mlp",)
+"""The ``critic`` group's options; the ``actor``'s are these and the recurrent ones (:data:`CELLS`)."""
 
 # The config's own resolvers, registered at import, before Hydra composes the config. "This or that" (oc.select
 # would not do: it keeps an explicit null): hydra.run.dir is ${or_else:${resume},outputs/...}, so that a resumed run
@@ -64,8 +66,12 @@ def validate(cfg: DictConfig) -> None:
     check_int("seed", cfg.seed, 0, 2**63 - 1)
     check_int("total_frames", cfg.total_frames, 1)
     _check_agent(cfg)
+    check_choice("actor.name", cfg.actor.name, (*NETWORKS, *CELLS))
+    if cfg.actor.name in CELLS:
+        check_int("actor.state_size", cfg.actor.get("state_size"), 1, 4096)
+        check_int("actor.layers", cfg.actor.get("layers"), 1, 8)
+    check_choice("critic.name", cfg.critic.name, NETWORKS)
     for net in ("actor", "critic"):
-        check_choice(f"{net}.name", cfg[net].name, NETWORKS)
         check_range(f"{net}.lr", cfg[net].lr, 0.0, 1.0, low_open=True)
         check_choice(f"{net}.activation", cfg[net].activation, ACTIVATIONS)
         if not OmegaConf.is_list(cfg[net].hidden) and not isinstance(cfg[net].hidden, list | tuple):

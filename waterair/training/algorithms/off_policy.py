@@ -30,7 +30,17 @@ TRANSITION_KEYS = (
     ("next", "done"),
     ("next", "terminated"),
 )
-"""What the replay buffer stores: the losses read nothing else (the env's gains stay out)."""
+"""What the replay buffer stores: the losses read nothing else (the env's gains stay out); a recurrent actor's state
+and ``is_init`` besides, at both steps (:func:`memory_keys`)."""
+
+
+def memory_keys(actor: TensorDictModule) -> tuple:
+    """What a recurrent ``actor`` reads besides the observation (its state and ``is_init``), at a transition's step and
+    its next: replayed, each transition's actions are computed from the state it was collected with, its target's
+    from the state the collecting actor passed on (TorchRL's recurrent modules step by step; no gradient flows
+    back through earlier steps). None for an MLP."""
+    keys = [key for key in actor.in_keys if key != "observation"]
+    return (*keys, *(("next", key) for key in keys))
 
 
 class PolyakUpdate(SoftUpdate):
@@ -152,12 +162,12 @@ class OffPolicy(Algorithm):
         per_batch = updates_per_batch(self.cfg)
         steps_per_batch = self.cfg.collector.frames_per_batch // self.cfg.env.num_envs
         random_frames, batch_size = self.cfg.collector.init_random_frames, self.cfg.buffer.batch_size
-        annealed = self.annealed_noise
+        annealed, stored = self.annealed_noise, (*TRANSITION_KEYS, *memory_keys(loss.actor_network))
 
         def learn(batch: TensorDictBase, progress: Counters) -> list[torch.Tensor]:
             if annealed:
                 noise.step(steps_per_batch)
-            buffer.extend(batch.select(*TRANSITION_KEYS).reshape(-1))
+            buffer.extend(batch.select(*stored).reshape(-1))
             if progress.frames < random_frames or len(buffer) < batch_size:
                 return []
             losses = []

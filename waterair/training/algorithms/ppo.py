@@ -13,10 +13,11 @@ from hydra.utils import instantiate
 from omegaconf import DictConfig
 from tensordict import TensorDict, TensorDictBase
 from torchrl.data import TensorDictReplayBuffer
-from torchrl.modules import ValueOperator
+from torchrl.modules import ValueOperator, set_recurrent_mode
 from torchrl.objectives import ValueEstimators
 
-from waterair.agents.networks import make_gaussian_policy, make_value
+from waterair.agents.networks import learned_scale, make_gaussian_policy, make_value
+from waterair.agents.recurrent import is_recurrent
 from waterair.core.validation import check_choice, check_int, check_range
 from waterair.training.algorithms.base import (
     Algorithm,
@@ -75,7 +76,7 @@ class PPO(Algorithm):
         ``noise.sigma_init``. Noise acts only under ``ExplorationType.RANDOM``: evaluation runs the bare actor."""
         spec = env.action_spec_unbatched.to(device)
         policy = make_gaussian_policy(actor, spec, self.cfg.noise.sigma_init).to(device)
-        return policy, policy.module[0].module[1]  # the learned scale
+        return policy, learned_scale(policy)
 
     def make_loss(self, actor, exploration, critic, env):
         """The loss of the stochastic ``exploration`` policy; no target update."""
@@ -94,7 +95,8 @@ class PPO(Algorithm):
         max_grad_norm = self.cfg.agent.max_grad_norm
 
         def update(batch: TensorDict, count: int) -> torch.Tensor:
-            losses = loss(batch)
+            with set_recurrent_mode(True):  # a recurrent actor over a minibatch's sequences; an MLP alike
+                losses = loss(batch)
             optim_actor.zero_grad(set_to_none=True)
             optim_critic.zero_grad(set_to_none=True)
             (losses["loss_objective"] + losses["loss_critic"]).backward()
@@ -111,14 +113,23 @@ class PPO(Algorithm):
         ``collector.updates_per_frame`` × its frames updates rounded to whole passes; its advantages recomputed
         before each pass, and no further pass once a pass has moved the policy by more than ``agent.target_kl``
         (mean approximate KL from the policy that collected the batch; null: every pass). None on the frames
-        of ``collector.init_random_frames``, whose random actions have no log-probability."""
+        of ``collector.init_random_frames``, whose random actions have no log-probability.
+
+        A recurrent actor learns from whole sequences: each minibatch is ``buffer.batch_size`` // the batch's steps
+        links (at least one), every step of each, run from the state each link's first step was collected with
+        (:meth:`minibatches`)."""
         cfg = self.cfg
         keys = loss.tensor_keys
         stored = ("observation", "action", keys.sample_log_prob, keys.advantage, keys.value_target)
         batch_size = cfg.buffer.batch_size
         per_pass = cfg.collector.frames_per_batch // batch_size
+        sequences = is_recurrent(loss.actor_network)
+        if sequences:
+            steps = cfg.collector.frames_per_batch // cfg.env.num_envs
+            per_pass = cfg.env.num_envs // max(1, batch_size // steps)
         passes = max(1, round(updates_per_batch(cfg) / per_pass))
         random_frames, target_kl = cfg.collector.init_random_frames, cfg.agent.target_kl
+        memory = [key for key in loss.actor_network.in_keys if key != "observation"]
 
         def learn(batch: TensorDictBase, progress: Counters) -> list[torch.Tensor]:
             if progress.frames - batch.numel() < random_frames:
@@ -130,10 +141,23 @@ class PPO(Algorithm):
                         break
                 with torch.no_grad():
                     loss.value_estimator(batch)
-                buffer.extend(batch.select(*stored).reshape(-1))  # the storage holds one batch
-                for minibatch in buffer.sample().split(batch_size):  # a pass: one permutation's minibatches
+                if sequences:
+                    minibatches = self.minibatches(batch.select(*stored, *memory), per_pass)
+                else:
+                    buffer.extend(batch.select(*stored).reshape(-1))  # the storage holds one batch
+                    minibatches = buffer.sample().split(batch_size)  # a pass: one permutation's minibatches
+                for minibatch in minibatches:
                     losses.append(update(minibatch, progress.updates))
                     progress.updates += 1
             return losses
 
         return learn
+
+    @staticmethod
+    def minibatches(batch: TensorDictBase, count: int) -> list[TensorDictBase]:
+        """A pass over a recurrent actor's batch ``[links, steps]``: ``count`` minibatches of whole links, in an order
+        drawn from torch's generator; the links a pass cannot fill a minibatch with wait for the next pass."""
+        links = batch.shape[0]
+        size = links // count
+        order = torch.randperm(links, device=batch.device)[: size * count]
+        return list(batch[order].split(size))
