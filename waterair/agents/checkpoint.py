@@ -20,6 +20,7 @@ from tensordict.nn import TensorDictModule, TensorDictModuleBase
 from waterair.agents.networks import RowBlocks, actor_for
 from waterair.agents.recurrent import is_recurrent
 from waterair.core.files import atomic_write
+from waterair.envs.config import EnvConfig
 
 POLICY_FORMAT = "waterair-policy/1"
 """The format tag this version writes and reads."""
@@ -42,10 +43,13 @@ class PolicyFile:
     observation_size: int
     frames: int | None
 
-    def actor(self, network: Mapping, observation_size: int | None = None) -> TensorDictModuleBase:
+    def actor(
+        self, network: Mapping, observation_size: int | None = None, observation: EnvConfig | None = None
+    ) -> TensorDictModuleBase:
         """The actor network of the ``actor`` group's option ``network`` with these weights, in eval mode on the CPU.
 
-        ``observation_size`` (the environment's) must equal the one the policy was trained with.
+        ``observation_size`` (the environment's) must equal the one the policy was trained with; ``observation``, the
+        training environment's config, says its layout (which ``actor=per_end`` splits).
         Raises :class:`CheckpointError` naming both sizes or both network shapes on a mismatch. An MLP acts on its
         rows in blocks (:class:`RowBlocks`); a recurrent actor is stepped through
         :class:`waterair.agents.recurrent.StepMemory`, which does the same.
@@ -55,7 +59,7 @@ class PolicyFile:
                 f"checkpoint {self.path}: trained with observations of size {self.observation_size}, but the "
                 f"environment gives {observation_size}; use the observation settings it was trained with"
             )
-        module = actor_for(network, self.observation_size, ACTION_SIZE)
+        module = actor_for(network, self.observation_size, ACTION_SIZE, observation)
         expected = {k: tuple(v.shape) for k, v in module.state_dict().items()}
         found = {k: tuple(v.shape) for k, v in self.actor_state.items()}
         if expected != found:

@@ -16,7 +16,9 @@ from torch import nn
 from torchrl.data import Bounded
 from torchrl.modules import MLP, ProbabilisticActor, TanhNormal, ValueOperator
 
+from waterair.agents.per_end import PerEnd, per_end_columns
 from waterair.agents.recurrent import CELLS, make_recurrent_actor
+from waterair.envs.config import EnvConfig
 
 ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
 """Activation names accepted by ``actor.activation`` / ``critic.activation``."""
@@ -37,19 +39,36 @@ def make_actor(
         activation_class=ACTIVATIONS[activation],
     )
     if zero_output:
-        output = [module for module in mlp.modules() if isinstance(module, nn.Linear)][-1]
-        nn.init.zeros_(output.weight)
-        nn.init.zeros_(output.bias)
+        _zero_last_layer(mlp)
     return TensorDictModule(nn.Sequential(mlp, nn.Tanh()), in_keys=["observation"], out_keys=["action"])
 
 
-def actor_for(network: Mapping, observation_size: int, action_size: int) -> TensorDictModuleBase:
-    """The actor of an ``actor`` group's option: ``mlp`` (:func:`make_actor`), or ``gru``/``lstm``, a recurrent
-    module of ``state_size`` × ``layers`` with that MLP on its features (:mod:`waterair.agents.recurrent`)."""
+def _zero_last_layer(mlp: nn.Module) -> None:
+    output = [module for module in mlp.modules() if isinstance(module, nn.Linear)][-1]
+    nn.init.zeros_(output.weight)
+    nn.init.zeros_(output.bias)
+
+
+def actor_for(
+    network: Mapping, observation_size: int, action_size: int, observation: EnvConfig | None = None
+) -> TensorDictModuleBase:
+    """The actor of an ``actor`` group's option: ``mlp`` (:func:`make_actor`); ``gru``/``lstm``, a recurrent module
+    of ``state_size`` × ``layers`` with that MLP on its features (:mod:`waterair.agents.recurrent`); ``per_end``, an
+    MLP per end on its own columns of ``observation``'s layout (:mod:`waterair.agents.per_end`)."""
     zero_output = bool(network.get("zero_output", False))
+    hidden, activation = network["hidden"], network["activation"]
+    if network["name"] == "per_end":
+        if observation is None:
+            raise ValueError("actor=per_end needs the environment config whose observation it splits")
+        columns = per_end_columns(observation.observation_layout, observation.frames, network["return_steps"])
+        module = PerEnd(columns, hidden, ACTIVATIONS[activation])
+        if zero_output:
+            for net in module.nets.values():
+                _zero_last_layer(net)
+        return TensorDictModule(nn.Sequential(module, nn.Tanh()), in_keys=["observation"], out_keys=["action"])
     if network["name"] not in CELLS:
-        return make_actor(observation_size, action_size, network["hidden"], network["activation"], zero_output)
-    head = make_actor(network["state_size"], action_size, network["hidden"], network["activation"], zero_output)
+        return make_actor(observation_size, action_size, hidden, activation, zero_output)
+    head = make_actor(network["state_size"], action_size, hidden, activation, zero_output)
     return make_recurrent_actor(network["name"], observation_size, network["state_size"], network["layers"], head)
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from waterair.agents.checkpoint import CheckpointError, PolicyFile, read_policy
-from waterair.envs.config import SENSOR_KEYS
+from waterair.envs.config import SENSOR_KEYS, EnvConfig
 from waterair.envs.operating_point import FIXED
 
 ASSETS = Path(__file__).resolve().parents[1] / "assets"
@@ -75,7 +75,14 @@ class LearnedPolicy:
     def actor(self, actor_cfg: DictConfig, observation_size: int):
         """The actor network (CPU, eval mode): its training config's shape, else ``actor_cfg``'s."""
         network = self.config.actor if self.config else actor_cfg
-        return self.file.actor(network, observation_size)
+        observation = None
+        if network.name == "per_end":  # its layout: the training config's, else the caller's size alone cannot say
+            if self.config is None:
+                raise CheckpointError(
+                    f"checkpoint {self.path}: actor=per_end needs the config.yaml it was trained with"
+                )
+            observation = EnvConfig.from_mapping(OmegaConf.to_container(self.config.env, resolve=True))
+        return self.file.actor(network, observation_size, observation)
 
 
 def load_policy(path: str | Path, label: str | None = None) -> LearnedPolicy:

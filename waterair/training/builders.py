@@ -53,9 +53,10 @@ def make_env(cfg: DictConfig) -> TransformedEnv:
 
 
 def make_actor(cfg: DictConfig, env, device) -> TensorDictModuleBase:
-    """Deterministic actor of the ``actor`` group: [a recurrent module →] MLP → tanh → action in [-1, 1]."""
+    """Deterministic actor of the ``actor`` group: [a recurrent module →] MLP (per end, ``per_end``) → tanh → action
+    in [-1, 1]."""
     sizes = env.observation_spec["observation"].shape[-1], env.action_spec.shape[-1]
-    return actor_for(cfg.actor, *sizes).to(device)
+    return actor_for(cfg.actor, *sizes, env.base_env.config).to(device)
 
 
 def memory_storage(buffer: DictConfig, capacity: int, run_dir: Path, device):

@@ -11,6 +11,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from waterair.agents.networks import ACTIVATIONS
+from waterair.agents.per_end import per_end_columns
 from waterair.agents.recurrent import CELLS
 from waterair.core.devices import resolve_device
 from waterair.core.threads import AUTO as AUTO_THREADS
@@ -66,10 +67,13 @@ def validate(cfg: DictConfig) -> None:
     check_int("seed", cfg.seed, 0, 2**63 - 1)
     check_int("total_frames", cfg.total_frames, 1)
     _check_agent(cfg)
-    check_choice("actor.name", cfg.actor.name, (*NETWORKS, *CELLS))
+    check_choice("actor.name", cfg.actor.name, (*NETWORKS, *CELLS, "per_end"))
     if cfg.actor.name in CELLS:
         check_int("actor.state_size", cfg.actor.get("state_size"), 1, 4096)
         check_int("actor.layers", cfg.actor.get("layers"), 1, 8)
+    if cfg.actor.name == "per_end":
+        check_int("actor.return_steps", cfg.actor.get("return_steps"), 0, 1000)
+        per_end_columns(env.observation_layout, env.frames, cfg.actor.return_steps)  # every part has its end
     check_choice("critic.name", cfg.critic.name, NETWORKS)
     for net in ("actor", "critic"):
         check_range(f"{net}.lr", cfg[net].lr, 0.0, 1.0, low_open=True)

@@ -19,7 +19,15 @@ TRAINING_KEYS: dict[str, tuple[str, str]] = {
     "eval.realisations": ("seas", "≥ 1"),
     "eval.steps": ("steps", "[1, `env.max_steps`]"),
     "eval.seed": ("–", "≥ 0"),
-    "actor.name": ("–", "mlp, gru, lstm (a recurrent module on the observations, then the MLP: docs/training.md)"),
+    "actor.name": (
+        "–",
+        "mlp; gru, lstm (a recurrent module on the observations, then the MLP); per_end (an MLP per end on its own "
+        "readings): docs/training.md",
+    ),
+    "actor.return_steps": (
+        "steps",
+        "[0, 1000] (per_end: the other end's readings reach an end this many steps late; none at ≥ `env.frames`)",
+    ),
     "actor.state_size": ("units", "[1, 4096] (gru, lstm: the recurrent state's width per layer)"),
     "actor.layers": ("layers", "[1, 8] (gru, lstm: stacked recurrent layers)"),
     "critic.name": ("–", "mlp"),
