@@ -61,9 +61,13 @@ def test_an_end_reads_the_other_ends_readings_only_through_the_return_channel(re
 
 def test_per_end_trains_saves_and_reloads_to_what_it_scored(tmp_path):
     """A short PPO run of per-end actors (the critic reads everything): its checkpoint and its exported policy, each
-    reloaded with the training config's layout, score what the run scored."""
+    reloaded with the training config's layout (its ``env.compile_kernel`` auto, as train.py saves it), score what
+    the run scored."""
     cfg = compose_config("config", [*TINY, "total_frames=800", "threads=1", "actor=per_end", "actor.hidden=[16]"])
     metrics = train(cfg, tmp_path / "run", progress=lambda line: None)
+    saved = tmp_path / "run" / "config.yaml"  # as train.py saves it by default: the env's compiles left to decide
+    assert "compile_kernel: false" in saved.read_text()
+    saved.write_text(saved.read_text().replace("compile_kernel: false", "compile_kernel: auto"))
     exported = export_policy(tmp_path / "run", tmp_path / "policy")
     point = ((cfg.env.sea.wind, cfg.env.geometry.offset_ratio, cfg.env.geometry.offset_azimuth_deg),)
     scenario = Scenario("check", "reload", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)

@@ -81,7 +81,8 @@ class LearnedPolicy:
                 raise CheckpointError(
                     f"checkpoint {self.path}: actor=per_end needs the config.yaml it was trained with"
                 )
-            observation = EnvConfig.from_mapping(OmegaConf.to_container(self.config.env, resolve=True))
+            env = OmegaConf.to_container(self.config.env, resolve=True)
+            observation = EnvConfig.from_mapping({**env, "compile_kernel": False})  # a saved run's may read auto
         return self.file.actor(network, observation_size, observation)
 
 
