@@ -64,8 +64,8 @@ class PolicyFile:
         found = {k: tuple(v.shape) for k, v in self.actor_state.items()}
         if expected != found:
             raise CheckpointError(
-                f"checkpoint {self.path}: its actor has layers {_shapes(found)}, but actor={network['name']} with "
-                f"hidden = {list(network['hidden'])} builds {_shapes(expected)}"
+                f"checkpoint {self.path}: its actor has layers {_shapes(found)}, but "
+                f"actor={network.get('name', 'mlp')} with hidden = {list(network['hidden'])} builds {_shapes(expected)}"
             )
         module.load_state_dict(self.actor_state)
         if is_recurrent(module):

@@ -55,9 +55,9 @@ def actor_for(
     """The actor of an ``actor`` group's option: ``mlp`` (:func:`make_actor`); ``gru``/``lstm``, a recurrent module
     of ``state_size`` × ``layers`` with that MLP on its features (:mod:`waterair.agents.recurrent`); ``per_end``, an
     MLP per end on its own columns of ``observation``'s layout (:mod:`waterair.agents.per_end`)."""
-    zero_output = bool(network.get("zero_output", False))
+    zero_output, name = bool(network.get("zero_output", False)), network.get("name", "mlp")  # older configs: mlp
     hidden, activation = network["hidden"], network["activation"]
-    if network["name"] == "per_end":
+    if name == "per_end":
         if observation is None:
             raise ValueError("actor=per_end needs the environment config whose observation it splits")
         columns = per_end_columns(observation.observation_layout, observation.frames, network["return_steps"])
@@ -66,10 +66,10 @@ def actor_for(
             for net in module.nets.values():
                 _zero_last_layer(net)
         return TensorDictModule(nn.Sequential(module, nn.Tanh()), in_keys=["observation"], out_keys=["action"])
-    if network["name"] not in CELLS:
+    if name not in CELLS:
         return make_actor(observation_size, action_size, hidden, activation, zero_output)
     head = make_actor(network["state_size"], action_size, hidden, activation, zero_output)
-    return make_recurrent_actor(network["name"], observation_size, network["state_size"], network["layers"], head)
+    return make_recurrent_actor(name, observation_size, network["state_size"], network["layers"], head)
 
 
 class RowBlocks(nn.Module):

@@ -76,7 +76,7 @@ class LearnedPolicy:
         """The actor network (CPU, eval mode): its training config's shape, else ``actor_cfg``'s."""
         network = self.config.actor if self.config else actor_cfg
         observation = None
-        if network.name == "per_end":  # its layout: the training config's, else the caller's size alone cannot say
+        if network.get("name") == "per_end":  # the layout it splits: its training config's (a size alone cannot say)
             if self.config is None:
                 raise CheckpointError(
                     f"checkpoint {self.path}: actor=per_end needs the config.yaml it was trained with"
