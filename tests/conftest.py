@@ -168,3 +168,20 @@ def machine() -> dict[str, str]:
         "capability": torch.backends.cpu.get_cpu_capability(),
         "threads": str(torch.get_num_threads()),
     }
+
+
+def reloaded_scores(cfg, metrics: dict, path: Path):
+    """The policy at ``path`` (a checkpoint or policy file), reloaded as evaluate.py loads it, scores on the closing
+    evaluation's seas of the run with config ``cfg`` what that run scored (``metrics``); returns its actor."""
+    from waterair.evaluation.policies import load_policy
+    from waterair.evaluation.runner import compare_policies
+    from waterair.evaluation.scenarios import Scenario
+
+    config = EnvConfig.from_mapping({**OmegaConf.to_container(cfg.env, resolve=True), "compile_kernel": False})
+    actor = load_policy(path).actor(cfg.actor, config.observation_size)
+    point = ((cfg.env.sea.wind, cfg.env.geometry.offset_ratio, cfg.env.geometry.offset_azimuth_deg),)
+    scenario = Scenario("check", "reload", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
+    scored = compare_policies(config, {"reloaded": actor}, scenario)["reloaded"]
+    for key in ("ratio_to_ub", "mean_gain"):
+        assert scored[key] == pytest.approx(metrics[f"agent/{key}"], rel=1e-6, abs=1e-12)
+    return actor

@@ -2,14 +2,11 @@
 
 import pytest
 import torch
-from conftest import TINY, compose_config, rejection
+from conftest import TINY, compose_config, rejection, reloaded_scores
 
 from waterair.agents.networks import actor_for
 from waterair.agents.per_end import ACTIONS, ENDS
 from waterair.envs.config import EnvConfig
-from waterair.evaluation.policies import load_policy
-from waterair.evaluation.runner import compare_policies
-from waterair.evaluation.scenarios import Scenario
 from waterair.training import train
 from waterair.training.builders import env_config
 from waterair.training.export import export_policy
@@ -69,16 +66,9 @@ def test_per_end_trains_saves_and_reloads_to_what_it_scored(tmp_path):
     assert "compile_kernel: false" in saved.read_text()
     saved.write_text(saved.read_text().replace("compile_kernel: false", "compile_kernel: auto"))
     exported = export_policy(tmp_path / "run", tmp_path / "policy")
-    point = ((cfg.env.sea.wind, cfg.env.geometry.offset_ratio, cfg.env.geometry.offset_azimuth_deg),)
-    scenario = Scenario("check", "reload", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
-    config = env_config(cfg)
     for path in (tmp_path / "run" / "checkpoints" / "last.pt", exported):
-        policy = load_policy(path)
-        actor = policy.actor(cfg.actor, config.observation_size)
-        assert actor.module.module[0].nets["tx"][0].in_features < config.observation_size
-        scored = compare_policies(config, {"reloaded": actor}, scenario)["reloaded"]
-        for key in ("ratio_to_ub", "mean_gain"):
-            assert scored[key] == pytest.approx(metrics[f"agent/{key}"], rel=1e-6, abs=1e-12)
+        actor = reloaded_scores(cfg, metrics, path)
+        assert actor.module.module[0].nets["tx"][0].in_features < env_config(cfg).observation_size
 
 
 @pytest.mark.parametrize(

@@ -4,20 +4,17 @@ import copy
 
 import pytest
 import torch
-from conftest import TINY, compose_config, rejection
+from conftest import TINY, compose_config, rejection, reloaded_scores
 from tensordict import TensorDict
 from torchrl.collectors import Collector
 from torchrl.modules import set_recurrent_mode
 
 from waterair.agents.networks import actor_for
-from waterair.agents.recurrent import state_keys
-from waterair.evaluation.policies import load_policy
-from waterair.evaluation.runner import compare_policies
-from waterair.evaluation.scenarios import Scenario
+from waterair.agents.recurrent import is_recurrent, state_keys
 from waterair.training import train
 from waterair.training.algorithms import create
 from waterair.training.algorithms.ppo import PPO
-from waterair.training.builders import env_config, make_actor, make_buffer, make_env
+from waterair.training.builders import make_actor, make_buffer, make_env
 from waterair.training.export import export_policy
 
 SIZES = {"observation": 5, "state": 6, "hidden": [7]}
@@ -171,16 +168,8 @@ def test_an_exported_recurrent_policy_scores_what_it_scored_in_training(tmp_path
     cfg = recurrent_cfg()
     metrics = train(cfg, tmp_path / "run", progress=lambda line: None)
     exported = export_policy(tmp_path / "run", tmp_path / "policy")
-    point = ((cfg.env.sea.wind, cfg.env.geometry.offset_ratio, cfg.env.geometry.offset_azimuth_deg),)
-    scenario = Scenario("check", "reload", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
-    config = env_config(cfg)
     for path in (tmp_path / "run" / "checkpoints" / "last.pt", exported):
-        policy = load_policy(path)
-        assert policy.config.actor.name == "gru"
-        actor = policy.actor(cfg.actor, config.observation_size)
-        scored = compare_policies(config, {"reloaded": actor}, scenario)["reloaded"]
-        for key in ("ratio_to_ub", "mean_gain"):
-            assert scored[key] == pytest.approx(metrics[f"agent/{key}"], rel=1e-6, abs=1e-12)
+        assert is_recurrent(reloaded_scores(cfg, metrics, path))
 
 
 @pytest.mark.parametrize(

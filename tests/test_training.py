@@ -14,17 +14,14 @@ from pathlib import Path
 import pytest
 import run_scripts
 import torch
-from conftest import ONE_PATH, ROOT, TINY, compose_config, machine, rejection
+from conftest import ONE_PATH, ROOT, TINY, compose_config, machine, rejection, reloaded_scores
 from omegaconf import OmegaConf
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 import waterair.training.checkpoint as checkpoint_module
 from waterair.cli import training
 from waterair.cli.migrate import main as migrate_main
-from waterair.envs.config import EnvConfig
 from waterair.evaluation.policies import load_policy
-from waterair.evaluation.runner import compare_policies
-from waterair.evaluation.scenarios import Scenario
 from waterair.training import train
 from waterair.training.builders import env_config
 from waterair.training.resume import plan_resume
@@ -89,13 +86,7 @@ def assert_the_reloaded_policy_scores_what_the_run_scored(cfg, metrics: dict, ru
     the closing evaluation's seas what the run scored."""
     policy = load_policy(run_dir / "checkpoints" / "last.pt")
     assert policy.file.observation_size == size and policy.config.env.frames == cfg.env.frames
-    config = EnvConfig.from_mapping(OmegaConf.to_container(cfg.env, resolve=True))
-    actor = policy.actor(cfg.actor, config.observation_size)
-    point = ((cfg.env.sea.wind, cfg.env.geometry.offset_ratio, cfg.env.geometry.offset_azimuth_deg),)
-    scenario = Scenario("check", "reload", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
-    reloaded = compare_policies(config, {"reloaded": actor}, scenario)["reloaded"]
-    for key in ("ratio_to_ub", "mean_gain"):
-        assert reloaded[key] == pytest.approx(metrics[f"agent/{key}"], rel=1e-6, abs=1e-12)
+    reloaded_scores(cfg, metrics, run_dir / "checkpoints" / "last.pt")
 
 
 @pytest.mark.slow
