@@ -10,7 +10,7 @@ from torchrl.collectors import Collector
 from torchrl.modules import set_recurrent_mode
 
 from waterair.agents.networks import actor_for
-from waterair.agents.recurrent import is_recurrent, state_keys
+from waterair.agents.recurrent import StepMemory, is_recurrent, state_keys
 from waterair.training import train
 from waterair.training.algorithms import create
 from waterair.training.algorithms.ppo import PPO
@@ -182,3 +182,21 @@ def test_an_exported_recurrent_policy_scores_what_it_scored_in_training(tmp_path
 )
 def test_a_recurrent_actors_bad_keys_name_themselves(overrides, message):
     assert message in rejection("train.py", overrides)
+
+
+def test_an_evaluations_recurrent_policy_acts_on_a_link_as_it_would_beside_any_other_links():
+    """StepMemory, as evaluate.py steps a recurrent policy: its state carried between calls, zero at the first, each
+    block of 64 rows with its own rows' state; six links score the same to the bit alone and as the last six of 70
+    (the second block; the blocks keep a matrix product's row count, and so its rounding, as RowBlocks does)."""
+    torch.manual_seed(3)
+    network = {"name": "lstm", "state_size": 64, "layers": 1, "hidden": [256, 256], "activation": "relu"}
+    actor = actor_for(network, 34, 4)  # the defaults' sizes: smaller ones take the same kernel at any row count
+    torch.manual_seed(7)
+    observations = torch.randn(5, 70, 34)
+    alone, among = StepMemory(actor), StepMemory(actor)
+    with torch.no_grad():
+        for t in range(5):
+            few = alone(TensorDict({"observation": observations[t, 64:]}, [6]))["action"]
+            many = among(TensorDict({"observation": observations[t]}, [70]))["action"]
+            assert torch.equal(few, many[64:])
+    assert few.abs().max() > 0.01  # the output layer drawn at random: actions to compare
