@@ -2,7 +2,7 @@
 
 Each is true, false or ``auto`` (:mod:`waterair.core.compiling` says when compiling pays). A recurrent actor's
 update stays eager on ``auto``: compiled, its recurrent module breaks the graph and the update is no faster (PPO,
-``actor=gru``, 1,600-frame batches on one thread: 260-300 frames/s either way, the compiles 60 s more).
+``actor=gru``, 1,600-frame batches on one thread: 230-330 frames/s either way, the compiles 60 s more).
 """
 
 from __future__ import annotations
