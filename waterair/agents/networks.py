@@ -16,12 +16,14 @@ from torch import nn
 from torchrl.data import Bounded
 from torchrl.modules import MLP, ProbabilisticActor, TanhNormal, ValueOperator
 
-from waterair.agents.per_end import PerEnd, per_end_columns
+from waterair.agents.per_end import PER_END, PerEnd, per_end_columns
 from waterair.agents.recurrent import CELLS, make_recurrent_actor
 from waterair.envs.config import EnvConfig
 
 ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU}
 """Activation names accepted by ``actor.activation`` / ``critic.activation``."""
+ACTORS = ("mlp", *CELLS, PER_END)
+"""The ``actor`` group's options (:func:`actor_for`)."""
 
 
 def make_actor(
@@ -57,7 +59,7 @@ def actor_for(
     MLP per end on its own columns of ``observation``'s layout (:mod:`waterair.agents.per_end`)."""
     zero_output, name = bool(network.get("zero_output", False)), network.get("name", "mlp")  # older configs: mlp
     hidden, activation = network["hidden"], network["activation"]
-    if name == "per_end":
+    if name == PER_END:
         if observation is None:
             raise ValueError("actor=per_end needs the environment config whose observation it splits")
         columns = per_end_columns(observation.observation_layout, observation.frames, network["return_steps"])

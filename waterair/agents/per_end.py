@@ -16,6 +16,8 @@ import torch
 from torch import nn
 from torchrl.modules import MLP
 
+PER_END = "per_end"
+"""The ``actor`` option's name."""
 ENDS = {
     "tx": ("tx_pointing", "beacon", "beacon_valid"),
     "rx": ("rx_pointing", "intensity", "spot", "spot_valid", "history"),

@@ -14,6 +14,7 @@ from pathlib import Path
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from waterair.agents.checkpoint import CheckpointError, PolicyFile, read_policy
+from waterair.agents.per_end import PER_END
 from waterair.envs.config import SENSOR_KEYS, EnvConfig
 from waterair.envs.operating_point import FIXED
 
@@ -76,7 +77,7 @@ class LearnedPolicy:
         """The actor network (CPU, eval mode): its training config's shape, else ``actor_cfg``'s."""
         network = self.config.actor if self.config else actor_cfg
         observation = None
-        if network.get("name") == "per_end":  # the layout it splits: its training config's (a size alone cannot say)
+        if network.get("name") == PER_END:  # the layout it splits: its training config's (a size alone cannot say)
             if self.config is None:
                 raise CheckpointError(
                     f"checkpoint {self.path}: actor=per_end needs the config.yaml it was trained with"

@@ -10,8 +10,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from waterair.agents.networks import ACTIVATIONS
-from waterair.agents.per_end import per_end_columns
+from waterair.agents.networks import ACTIVATIONS, ACTORS
+from waterair.agents.per_end import PER_END, per_end_columns
 from waterair.agents.recurrent import CELLS
 from waterair.core.devices import resolve_device
 from waterair.core.threads import AUTO as AUTO_THREADS
@@ -31,7 +31,7 @@ POLICY_WEIGHTS = ("average", "last")
 NOISES = ("gaussian", "ou")
 BUFFERS = ("memory", "memmap")
 NETWORKS = ("mlp",)
-"""The ``critic`` group's options; the ``actor``'s are these and the recurrent ones (:data:`CELLS`)."""
+"""The ``critic`` group's options (the ``actor``'s: :data:`waterair.agents.networks.ACTORS`)."""
 
 # The config's own resolvers, registered at import, before Hydra composes the config. "This or that" (oc.select
 # would not do: it keeps an explicit null): hydra.run.dir is ${or_else:${resume},outputs/...}, so that a resumed run
@@ -67,11 +67,11 @@ def validate(cfg: DictConfig) -> None:
     check_int("seed", cfg.seed, 0, 2**63 - 1)
     check_int("total_frames", cfg.total_frames, 1)
     _check_agent(cfg)
-    check_choice("actor.name", cfg.actor.name, (*NETWORKS, *CELLS, "per_end"))
+    check_choice("actor.name", cfg.actor.name, ACTORS)
     if cfg.actor.name in CELLS:
         check_int("actor.state_size", cfg.actor.get("state_size"), 1, 4096)
         check_int("actor.layers", cfg.actor.get("layers"), 1, 8)
-    if cfg.actor.name == "per_end":
+    if cfg.actor.name == PER_END:
         check_int("actor.return_steps", cfg.actor.get("return_steps"), 0, 1000)
         per_end_columns(env.observation_layout, env.frames, cfg.actor.return_steps)  # every part has its end
     check_choice("critic.name", cfg.critic.name, NETWORKS)
