@@ -77,6 +77,25 @@ def test_a_small_command_on_a_limited_axis_is_the_exact_response():
     assert [s.angle.item() for s in a] == [s.angle.item() for s in b]
 
 
+@pytest.mark.parametrize("dtype", [torch.float32, F64])
+def test_where_no_limit_binds_every_link_takes_the_exact_response_bit_for_bit(dtype):
+    """Many links, each well inside the default gimbal's rate and acceleration limits: each is the unlimited
+    axis's response to the last bit. Taking rate + (free rate - rate) for the free rate, the sub-steps once
+    found a limit binding on about one sub-step in 15 (two thirds of the links) and replaced the exact response
+    by their approximation."""
+    limited = Axis(rate=2.1, acceleration=35.0, natural_frequency=8.0)
+    free = Axis(natural_frequency=8.0)
+    g = torch.Generator().manual_seed(5)
+    angle, rate = 0.01 * torch.randn(4096, generator=g, dtype=dtype), 0.05 * torch.randn(4096, generator=g, dtype=dtype)
+    target = angle + 0.002 * torch.randn(4096, generator=g, dtype=dtype)
+    got, want = (
+        respond(limited, AxisState(angle, rate), target, 0.05),
+        respond(free, AxisState(angle, rate), target, 0.05),
+    )
+    assert want.rate.abs().max() < 0.5 * limited.rate  # nowhere near the rate limit, nor (35 rad/s²) the acceleration's
+    assert torch.equal(got.angle, want.angle) and torch.equal(got.rate, want.rate)
+
+
 def test_the_range_and_the_resolution_hold():
     axis = Axis(range=0.02, natural_frequency=50.0, damping=0.3, resolution=1e-4)
     states = _run(axis, [0.5, -0.5, 0.5, 0.0123456], 0.001)

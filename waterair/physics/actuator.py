@@ -147,9 +147,13 @@ def respond(axis: Axis, state: AxisState, target: torch.Tensor, dt: float) -> Ax
     angle, rate = state.angle, state.rate
     for _ in range(SUBSTEPS):
         free = _exact(phi, AxisState(angle, rate), u)
-        change = (free.rate - rate).clamp(-axis.acceleration * h, axis.acceleration * h)
-        new_rate = (rate + change).clamp(-axis.rate, axis.rate)
-        bound = free.rate != new_rate
+        wanted = free.rate - rate
+        change = wanted.clamp(-axis.acceleration * h, axis.acceleration * h)
+        reached = rate + change
+        new_rate = reached.clamp(-axis.rate, axis.rate)
+        # a limit binds where a clamp changed its value (exact where it did not); rate + (free.rate - rate) itself
+        # differs from free.rate in its last bit on about one sub-step in 15
+        bound = (change != wanted) | (new_rate != reached)
         inside = inside & ~bound
         mean = 0.5 * (rate + new_rate) * h
         moved = torch.where(bound, mean, free.angle - angle)
