@@ -37,6 +37,7 @@ from waterair.envs import kernel, stepper
 from waterair.envs.config import OBSERVATION_EXTRAS
 from waterair.envs.env import WaterAirEnv
 from waterair.envs.stepper import Stepper
+from waterair.physics import actuator
 from waterair.physics.channel import LinkEnds, LinkGeometry, RayTube, Transceiver, TwoScale
 from waterair.physics.channel import light as light_module
 from waterair.physics.optics import unit_vector
@@ -67,6 +68,13 @@ STEP = {
 """The environment whose step is compiled: every observation part, the realistic sensor, residual actions on the
 quadrant tracker (the transmitter's within 2 ω_D), links with divergences of their own, the paper's single path
 with one Newton iteration a step, so that links are finished on most steps."""
+
+
+@pytest.fixture(autouse=True)
+def two_substeps(monkeypatch):
+    """A rate-limited axis's sub-steps (:data:`~waterair.physics.actuator.SUBSTEPS`) unrolled twice rather than 16
+    times: the same code, a quarter fewer nodes in the defaults' step graph to trace and compile."""
+    monkeypatch.setattr(actuator, "SUBSTEPS", 2)
 
 
 @pytest.fixture
