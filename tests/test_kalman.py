@@ -179,3 +179,38 @@ def test_an_episode_starts_with_none_of_the_rate_carried_over_so_a_guessed_rate_
     move = 3.0 * prior.sqrt()  # a move three times the prior's step, foretold exactly
     after = kalman.carry(tracker.carried, move, move, 1.0)
     assert torch.allclose(kalman.share(after), torch.full_like(prior, 9.0 / 10.0))
+
+
+def test_a_track_started_again_by_a_jump_points_ahead_only_once_it_has_held_ready_readings(monkeypatch):
+    """The drone crossing a calm sea at 1.5 m/s, ideal sensing: the filter points the receiver ahead of its
+    reading by about a step's turn. At step 30 the reading jumps by 20 mrad (as where the light moves to another
+    refraction point): the track starts again, and until READY readings in a row have fallen within its gate it
+    points at its filtered angle, within a tenth of a step's turn of the reading, not along a rate it took from
+    the jump; then ahead again."""
+    still = dict(drift_horizontal=0.0, drift_vertical=0.0, drone_attitude=0.0, vehicle_attitude=0.0, imu_error=0.0,
+                 vehicle_response=0.0, transit_speed=1.5)  # fmt: skip
+    config = EnvConfig(num_envs=2, seed=2, dtype="float64", observation_extras=TWO_ENDED, sea={"flat": True},
+                       max_steps=80, motion={"kind": "transit", **still})  # fmt: skip
+    env = WaterAirEnv(config)
+    jump, readings = 30, []
+    read = BeaconTracker.directions
+
+    def jumped(self, tensordict):  # the receiver's reading, 20 mrad off from step `jump` on
+        tx, rx = read(self, tensordict)
+        if len(readings) >= jump:
+            rx = torch.nn.functional.normalize(rx + torch.tensor([0.02, 0.0, 0.0], dtype=rx.dtype), dim=-1)
+        readings.append(rx)
+        return tx, rx
+
+    monkeypatch.setattr(BeaconTracker, "directions", jumped)
+    controller, td, ahead = KalmanTracker(env), env.reset(), []
+    for _ in range(50):
+        tx_dir, rx_dir = controller.directions(td)
+        ahead.append(torch.linalg.vector_norm(rx_dir - readings[-1], dim=-1).max().item())
+        td = env.step(td.set("action", env.action_for_pointing(tx_dir, rx_dir, td["tilt"], td.get("base_tilt"))))
+        td = td["next"]
+    turn = torch.linalg.vector_norm(readings[jump - 1] - readings[jump - 2], dim=-1).max().item()
+    assert 0.5 * turn < ahead[jump - 1] < 2.0 * turn  # before the jump: ahead by about a step's turn
+    held = ahead[jump : jump + KalmanTracker.READY]  # the jump's step, then until READY readings within the gate
+    assert max(held) < 0.1 * turn, held
+    assert min(ahead[jump + KalmanTracker.READY + 2 :]) > 0.5 * turn, ahead  # ahead again

@@ -111,7 +111,8 @@ class KalmanTracker(BeaconTracker):
       crossing drone, less where the light turns back within a step, where pointing along the rate overshoots.
     * A reading lost, read with the gimbals parked at the reset, or beyond :data:`GATE` standard deviations of its
       innovation (the centroid jumping between refraction points) starts that end's track again: it points as
-      the beacon tracker does until its next reading.
+      the beacon tracker does until its next reading, and at its filtered angle, not ahead, until :data:`READY`
+      readings in a row have fallen within the gate.
 
     It keeps each link's tracks; the seas are the environment's (a batch of its links, or one replica's: the
     replicas share their seas).
@@ -123,12 +124,17 @@ class KalmanTracker(BeaconTracker):
     """The smallest reading noise (rad) assumed: the detectors' resolution, where the sensor model has none."""
     MEMORY = 4.0
     """The time (s) over which the share of the rate that carries over fades (a few wave periods)."""
+    READY = 3
+    """The readings in a row within the gate a track takes before it points ahead: the rate of a track started
+    by a jump comes from the jump's end, and pointed along at once it set the held rate's tail where the drone
+    stands still (docs/results.md, "S6 and S7")."""
 
     def __init__(self, env, config=None):
         super().__init__(env, config)
         self.track: kalman.Track | None = None  # [2 ends, n, 2 components]
         self.carried: kalman.Carry | None = None  # of the same shape
         self.last: torch.Tensor | None = None  # the last reading
+        self.held: torch.Tensor | None = None  # the readings in a row each track took, up to READY [2, n, 2]
 
     def _sea_variances(self) -> tuple[torch.Tensor, torch.Tensor]:
         """The white acceleration's and the starting rate's variances ``[2, B, 2]`` (ends, links, components)."""
@@ -181,7 +187,8 @@ class KalmanTracker(BeaconTracker):
         if self.track is None or self.track.state.shape[:-1] != reading.shape:
             self.track, usable = fresh, torch.zeros_like(usable)
             self.carried, self.last = prior, reading
-        assert self.carried is not None and self.last is not None
+            self.held = torch.zeros(reading.shape, dtype=torch.long, device=reading.device)
+        assert self.carried is not None and self.last is not None and self.held is not None
         starting = parked.unsqueeze(-1).expand_as(reading)  # an episode's start: its sea is a new one
         self.carried = kalman.Carry(*(torch.where(starting, p, c) for p, c in zip(prior, self.carried, strict=True)))
         predicted = kalman.predict(self.track, dt, acceleration)
@@ -191,9 +198,10 @@ class KalmanTracker(BeaconTracker):
         foretold = torch.where(tracking, self.track.state[..., 1] * dt, torch.zeros_like(reading))  # a fresh track's: 0
         self.carried = kalman.carry(self.carried, reading - self.last, foretold, math.exp(-dt / self.MEMORY))
         self.track, self.last = kalman.choose(tracking, updated, fresh), reading
+        self.held = torch.where(tracking, (self.held + 1).clamp(max=self.READY), torch.zeros_like(self.held))
         lag = self.env.config.actuator.lag(dt)
         lead = torch.tensor([dt + lag, dt * (self.config.latency_steps + 1) + lag], dtype=torch.float64)
-        lead = lead.to(reading.device).view(2, 1, 1) * kalman.share(self.carried)
+        lead = lead.to(reading.device).view(2, 1, 1) * kalman.share(self.carried) * (self.held >= self.READY)
         tilt = torch.where(tracking, kalman.ahead(self.track, lead), reading)
         tilt = tilt.to(tracker.dtype)
         return pointing(tilt[0], up=True), pointing(tilt[1], up=False)
