@@ -56,8 +56,11 @@ whose actuators take any command, off their resolution grids. Rounding a command
 compiled and eager code differ in a command's last bit, one takes the grid's next step (the mirror's 2 µrad), which
 1.6 ω_D off a 10 mrad beam moves the intensity by 8e-4 of itself, beyond the tolerances below; the grid itself is
 the actuator's tests' (tests/test_actuator.py)."""
+SLOW_GIMBAL = 0.3
+"""The compared environment's gimbal rate limit (rad/s; the defaults' 2.1): its random commands slew the gimbal at the
+limit on most steps, so that the sub-steps a binding limit takes are compared too."""
 STEP = {
-    **CONTINUOUS,
+    "actuator": {**CONTINUOUS["actuator"], "gimbal_rate": SLOW_GIMBAL},
     "observation_extras": OBSERVATION_EXTRAS,
     "residual_base": "aoa_tracker",
     "residual_beams": 2.0,
@@ -67,7 +70,7 @@ STEP = {
 }
 """The environment whose step is compiled: every observation part, the realistic sensor, residual actions on the
 quadrant tracker (the transmitter's within 2 ω_D), links with divergences of their own, the paper's single path
-with one Newton iteration a step, so that links are finished on most steps."""
+with one Newton iteration a step, so that links are finished on most steps, and a gimbal that slews at its limit."""
 
 
 @pytest.fixture(autouse=True)
@@ -135,8 +138,10 @@ def compiled_against_eager(monkeypatch) -> None:
     # torch's compile cache keeps the graphs (no op with effects in them): a later process pays only tracing
     assert torch._dynamo.utils.counters["inductor"]["fxgraph_cache_bypass"] == bypassed
     captured = torch._dynamo.utils.counters["stats"]["calls_captured"]
-    eager = rollout(WaterAirEnv(config), actions)
+    eager_env = WaterAirEnv(config)
+    eager = rollout(eager_env, actions)
     assert torch._dynamo.utils.counters["stats"]["calls_captured"] == captured  # the eager env traced nothing
+    assert eager_env.state.drive[..., 1].abs().max() == SLOW_GIMBAL, "no gimbal reached its rate limit"
     assert config.compile_kernel is False and eager["observation"].shape[-1] == config.observation_size
     assert eager["gain"].abs().max() > 0 and eager["path_valid"].float().mean() > 0.95
     assert len(finishes) > steps // 2, "few steps left a link unconverged: the finishing graphs went untested"
