@@ -50,6 +50,8 @@ OCEAN = {"spectrum": "elfouhaily", "n_wavenumbers": 24, "n_dir": 8}
 PAPER = paper_physics()  # the single path converges the tracked point: finishing
 FIXED_LINK = {"wind_range": None, "offset_range": None}
 """The evaluation's environments below: every link at the default wind and offset."""
+STILL = {"motion": {"kind": "static"}, "actuator": {"kind": "ideal"}}
+"""Today's link before its ends moved: the step without the platforms' and actuators' parts."""
 CONTINUOUS = {"actuator": {"kind": "gimbal_fsm", "gimbal_resolution": 0.0, "mirror_resolution": 0.0}}
 """The defaults' ends (hovering drone, vehicle in the sea's orbital motion, a gimbal with a fine mirror at each end)
 whose actuators take any command, off their resolution grids. Rounding a command to a grid is discontinuous: where
@@ -299,8 +301,9 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(
     the step again, symbolic only once torch had seen it change: a process's graphs, and what a later
     process could load from the compile cache, depended on the order of the groups), and tensordict's
     answers remembered during a rollout do not throw the first graph away. Traced only (dynamo's counting
-    backend), on the defaults' channel over a coarse sea. torch's automatic dynamic shapes are off in the
-    block, so no profile of an earlier process (one that had seen these vary) makes anything symbolic."""
+    backend), on the defaults' channel over a coarse sea, one Newton iteration a step. torch's automatic dynamic
+    shapes are off in the block, so no profile of an earlier process (one that had seen these vary) makes
+    anything symbolic."""
     from torch._dynamo.testing import CompileCounter
 
     counter, traced, settings = CompileCounter(), {}, stepper.compiled
@@ -314,7 +317,7 @@ def test_an_evaluation_compiles_one_step_graph_for_every_batch_size_and_setting(
     gains = []
     with stepper.varying_environments():
         for batch, keys in EVALUATION_ENVS:
-            config = preset_config("quadrant", "realistic", batch, compile_kernel=True, sea=OCEAN)
+            config = preset_config("quadrant", "realistic", batch, compile_kernel=True, sea=OCEAN, newton_iterations=1)
             config = config.replace(residual_base="aoa_tracker", **keys, **FIXED_LINK)
             actions = torch.linspace(-1.0, 1.0, 3 * batch * 4).reshape(3, batch, 4)
             gains.append(rollout(WaterAirEnv(config), actions)["gain"][:, :2])
@@ -330,8 +333,9 @@ def test_a_groups_graph_in_an_evaluation_does_not_depend_on_the_groups_before_it
     """The realistic sensor's step graph compiled after an ideal-sensor group's (no latency: one packet in flight, not
     two) has no size symbolic but the batch's, as compiled alone. With torch's automatic dynamic shapes the second
     compile would make the packets' count symbolic, and the graph, which a later process looks up in torch's compile
-    cache, would depend on the order of the groups. Traced only, on the paper's single path over a small sea (the
-    packets are the channel's whatever it is); each graph's inputs read for the sizes dynamo made symbolic."""
+    cache, would depend on the order of the groups. Traced only, on the paper's single path over a small sea between
+    still ends pointed at once (the packets are the channel's whatever it is, and the ends'); each graph's inputs
+    read for the sizes dynamo made symbolic."""
     graphs = []
 
     def keep(graph, example_inputs):  # a backend that keeps each graph and runs it as traced
@@ -348,7 +352,7 @@ def test_a_groups_graph_in_an_evaluation_does_not_depend_on_the_groups_before_it
     monkeypatch.setattr(stepper, "compiled", lambda name: step if name == "step" else getattr(kernel, name))
     with stepper.varying_environments():
         for sensor in ("ideal", "realistic"):
-            physics = paper_physics(n_freq=16, n_dir=8)  # one Newton iteration a step: a smaller graph to trace
+            physics = {**paper_physics(n_freq=16, n_dir=8), **STILL}  # one Newton iteration a step: a smaller graph
             config = preset_config("quadrant", sensor, 4, compile_kernel=True, newton_iterations=1, **physics)
             rollout(WaterAirEnv(config.replace(**FIXED_LINK)), torch.zeros(2, 4, 4))
     assert len(graphs) == 2, f"{len(graphs)} graphs for two sensors"

@@ -344,7 +344,7 @@ def test_a_sweep_over_the_discount_and_the_wind_summarises_and_names_each_job_by
     spec = importlib.util.spec_from_file_location("train", ROOT / "train.py")
     entry_point = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(entry_point)
-    small = [*TINY, *ONE_PATH, "env.num_envs=4", "total_frames=400", "eval.realisations=2", "eval.steps=10"]
+    small = [*TINY, *ONE_PATH, "total_frames=400", "eval.realisations=2", "eval.steps=10"]
     sweep = tmp_path / "sweep"
     swept = ["agent.gamma=0,0.9", "env.wind=4,12", "reward.a=5"]
     multirun(ROOT / "conf", "config", entry_point.main, [*swept, *small, f"hydra.sweep.dir={sweep}"], "train")
