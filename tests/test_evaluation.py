@@ -142,11 +142,12 @@ def test_sensing_decides_whose_sensor_a_learned_policy_and_its_controllers_use(t
     assert config.latency_steps == 1 and config.intensity_noise == 0.05 and trained.env.latency_steps == 0
     late = [
         f"{name} (1-step latency, noisy, saturating)"
-        for name in ("beacon_tracker", "kalman_tracker", "aoa_tracker", "intensity_dither")
+        for name in ("prediction_bound", "beacon_tracker", "kalman_tracker", "aoa_tracker", "intensity_dither")
     ]
-    # the controllers with the policy's sensing are replicas of the baselines' group that sense their own way
+    # the bound and the controllers with the policy's sensing are replicas of the baselines' group that sense their
+    # own way
     (config, members), (_, [(label, _)]) = trained.groups
-    assert [name for name, _ in members][-4:] == late and label == trained.policies[0].label
+    assert [name for name, _ in members][-5:] == late and label == trained.policies[0].label
     assert latencies(trained.groups) == {name: int(name in late or name == label) for name in latencies(trained.groups)}
     assert config.latency_steps == 0 and config.replica_configs()[-1].intensity_saturation == 4.0
     scenario = prepare(eval_cfg(f"run={tiny_run}", "sensing=scenario"))
@@ -169,11 +170,11 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     labels = [p["label"] for p in data["policies"]]
     references = ["tracking", "prediction_bound", "beacon_tracker", "kalman_tracker", "aoa_tracker"]
     references += ["intensity_dither", "flat_snell", "straight_facing", "no_alignment"]
-    # the run trained with the realistic sensor (train.py's default): the classical controllers also
-    # run with its sensing, beside it, while the scenario's sensor stays ideal for the references
+    # the run trained with the realistic sensor (train.py's default): the prediction bound and the classical
+    # controllers also run with its sensing, beside it, while the scenario's sensor stays ideal for the references
     realistic = [
         f"{name} (1-step latency, noisy, saturating)"
-        for name in ("beacon_tracker", "kalman_tracker", "aoa_tracker", "intensity_dither")
+        for name in ("prediction_bound", "beacon_tracker", "kalman_tracker", "aoa_tracker", "intensity_dither")
     ]
     assert labels[0] == "upper_bound" and labels[2:] == references + realistic
     assert data["policies"][1]["kind"] == "learned" and data["policies"][1]["frames"] == 800
@@ -189,14 +190,15 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
         # the upper bound's outage is at most every policy's: the same seas, the most light at each step
         bound = next(r for r in data["rows"] if r["policy"] == "upper_bound" and _same_point(r, row))
         assert bound["outage"] <= row["outage"] and bound["ber"] <= row["ber"] + 1e-15, row
-    # the learned policy against the controller its residual actions correct, sensing as it does, at every point
+    # the learned policy against the controller its residual actions correct (realistic[1], the beacon tracker),
+    # sensing as it does, at every point
     assert [(c["scenario"], c["policy"], c["base"]) for c in data["comparisons"]] == [
-        (name, labels[1], realistic[0]) for name, count in points.items() for _ in range(count)
+        (name, labels[1], realistic[1]) for name, count in points.items() for _ in range(count)
     ]
     for comparison in data["comparisons"]:
         assert set(comparison) == set(COMPARISON_KEYS)
         row = next(r for r in data["rows"] if r["policy"] == labels[1] and _same_point(r, comparison))
-        base = next(r for r in data["rows"] if r["policy"] == realistic[0] and _same_point(r, comparison))
+        base = next(r for r in data["rows"] if r["policy"] == realistic[1] and _same_point(r, comparison))
         assert comparison["ratio_to_ub_diff"] == pytest.approx(row["ratio_to_ub"] - base["ratio_to_ub"], abs=1e-12)
         assert comparison["ratio_to_ub_diff_lo"] <= comparison["ratio_to_ub_diff"] <= comparison["ratio_to_ub_diff_hi"]
         assert (comparison["rate_held"], comparison["base_rate_held"]) == (row["rate_held"], base["rate_held"])
@@ -220,7 +222,7 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert "Acquisition (the first 0.5 s of each realisation) and tracking (the rest) apart" in report
     assert "## Learned policies against their classical bases" in report
     assert (
-        f"| S1 | 12 m/s, 10% | {labels[1]} | {realistic[0]} | {data['comparisons'][0]['ratio_to_ub_diff']:+.4f} ["
+        f"| S1 | 12 m/s, 10% | {labels[1]} | {realistic[1]} | {data['comparisons'][0]['ratio_to_ub_diff']:+.4f} ["
         in report
     )
 
@@ -364,7 +366,7 @@ def test_every_policy_sees_the_same_seas_and_stays_under_the_upper_bound(tiny_ru
     spot = write_policy(tmp_path / "spot.pt", observation_size=10, extras=("spot",))
     result = evaluate(eval_cfg(f"run={tiny_run}", f"checkpoint={spot}"), progress=lambda _: None)
     kinds = [p["kind"] for p in result.policies]
-    assert kinds == ["bound", "learned", "learned"] + ["baseline"] * (9 + 4)  # + the controllers with the run's sensing
+    assert kinds == ["bound", "learned", "learned"] + ["baseline"] * (9 + 5)  # + the sensed ones with the run's sensing
     for scenario, traces in result.traces.items():
         # clamping only raises a bound: the search's own is the least over the policies
         searched_bound = torch.stack([trace["gain_upper_bound"] for trace in traces.values()]).amin(0)
@@ -417,7 +419,7 @@ def test_the_controllers_with_a_policys_sensor_score_beside_the_baselines_as_alo
     skip = ("scenarios.S2=null", "scenarios.S3=null", "scenarios.S4=null")
     runs = [evaluate(eval_cfg(f"run={tiny_run}", f"batch_policies={together}", *skip)) for together in (True, False)]
     sensed = [row["policy"] for row in runs[0].rows if "1-step latency" in row["policy"]]
-    assert len(sensed) == 4 and len(runs[0].rows) == len(runs[1].rows)
+    assert len(sensed) == 5 and len(runs[0].rows) == len(runs[1].rows)
     for batched, alone in zip(runs[0].rows, runs[1].rows, strict=True):
         assert batched["policy"] == alone["policy"]
         for name in METRICS:
@@ -605,8 +607,8 @@ def test_learned_policies_that_observe_and_act_otherwise_join_the_groups_of_thei
     assert labels[-3:] == ["ppo default", "ppo intensity", "ddpg paper"] and config.frames == 2
     late = {label for label, replica in zip(labels, config.replica_configs(), strict=True) if replica.latency_steps}
     assert late == {"ppo default", "ppo intensity", *(label for label in labels if "1-step latency" in label)}
-    assert config.latency_steps == 0 and len(late) == 6
-    assert [dict(a).get("action_mode") for a in config.replica_actions] == [None] * 13 + ["residual"] * 2 + [None]
+    assert config.latency_steps == 0 and len(late) == 7
+    assert [dict(a).get("action_mode") for a in config.replica_actions] == [None] * 14 + ["residual"] * 2 + [None]
     points = [(12.0, 0.1, 0.0), (20.0, 0.3, 45.0)]
     together = {}
     for config, members in plan.groups:

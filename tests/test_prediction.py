@@ -175,3 +175,60 @@ def test_in_an_evaluation_it_lies_between_tracking_and_the_upper_bound_calibrate
         for label, key in (("tracking", "gain"), ("bound", "gain"), ("bound", "gain_upper_bound"))
     )
     assert (tracked < predicted_gain).all() and (predicted_gain < bound).all(), (tracked, predicted_gain, bound)
+
+
+def test_the_predictor_forecasts_sums_of_sinusoids_several_steps_ahead_to_rounding():
+    """Over a horizon of 3 steps (an end whose reading comes 2 steps late): the recurrence of the sinusoids carries
+    any number of steps, and the path known 3 steps before is far off."""
+    states = sinusoids(FREQUENCIES, 20, 120, seed=10)
+    valid, groups = torch.ones(states.shape[:2], dtype=torch.bool), torch.zeros(20, dtype=torch.long)
+    weights, _ = fit(states, torch.zeros_like(states), valid, groups, 1, 3)
+    fresh = sinusoids(FREQUENCIES, 4, 80, seed=11)
+    history = fresh.unfold(1, ORDER + 1, 1).flip(-1).transpose(-1, -2)[:, :-3]  # newest first, 3 steps before
+    forecast = history[:, :, 0] + features(history, torch.zeros_like(history[:, :, 0])) @ weights[0].T
+    truth = fresh[:, ORDER + 3 :]
+    assert (forecast - truth).abs().max() < 1e-6 * fresh.abs().max()
+    assert (history[:, :, 0] - truth).abs().max() > 1e-2 * fresh.abs().max()
+    assert not torch.allclose(weights, fit(states, torch.zeros_like(states), valid, groups, 1)[0])
+
+
+def test_each_ends_delay_is_a_step_its_readings_latency_and_its_actuators_lag():
+    """The receiver's reading comes ``latency_steps`` late, the transmitter's beacon at once; a gimbal alone trails a
+    turning command by its ramp lag, 2ζ/ω_n less half the step it holds the command over (zero-order hold); a fine
+    mirror by nothing a step can see."""
+    ideal = preset_config("quadrant", "ideal", 4, **STILL)
+    assert prediction.delays(ideal) == (1.0, 1.0)
+    assert prediction.delays(ideal.replace(latency_steps=2)) == (1.0, 3.0)
+    mirrored = ideal.replace(actuator={"kind": "gimbal_fsm"}, latency_steps=1)
+    assert prediction.delays(mirrored) == (1.0, 2.0) and prediction.delays(mirrored.replace(dt=0.005)) == (1.0, 2.0)
+    dt = 1e-4
+    gimbal = ideal.replace(actuator={"kind": "gimbal"}, dt=dt)
+    ramp = 2 * gimbal.actuator.gimbal_damping / (2 * math.pi * gimbal.actuator.gimbal_natural_frequency) - dt / 2
+    transmitter, receiver = prediction.delays(gimbal)
+    assert receiver == transmitter and transmitter - 1 == pytest.approx(ramp / dt, rel=1e-3)
+    assert prediction.spanned(2.25) == ((2, 0.75), (3, 0.25)) and prediction.spanned(3.0) == ((3, 1.0),)
+
+
+def test_a_late_reading_is_forecast_over_its_delay_and_the_other_end_is_left_as_it_was(few_calibration_links):
+    """The receiver's reading 2 steps late: the bound forecasts its pointing over 3 steps, further off the next path
+    than over 1 and nearer than the path it knows (its predictors zeroed: the path 3 steps old), once its history
+    is full; the transmitter, whose beacon is never late, points exactly as with no latency. 12 m/s, 4 links."""
+    config = preset_config("quadrant", "ideal", 4, **STILL, **POINT, max_steps=80)
+    late = config.replace(latency_steps=2)
+
+    def unpredicted(env):
+        bound = PredictionBound(env)
+        assert bound.horizons == [1, 3]
+        bound.coefficients = {k: torch.zeros_like(w) for k, w in bound.coefficients.items()}
+        return bound
+
+    def errors(config, policy):  # each end's pointing off the path of its step, rms [2], and the pointing
+        run = rollout(config, policy, 80)["next"][:, ORDER + 3 :]
+        miss = (run["tilt"] - prediction.tilts(run["departure"], run["arrival"])).unflatten(-1, (2, 2))
+        return miss.square().sum(-1).mean((0, 1)).sqrt(), run["tilt"]
+
+    (now, pointed_now), (later, pointed_later), (known, _) = (
+        errors(c, policy) for c, policy in ((config, PredictionBound), (late, PredictionBound), (late, unpredicted))
+    )
+    assert now[1] < later[1] < known[1], (now, later, known)
+    assert torch.equal(pointed_later[..., :2], pointed_now[..., :2])

@@ -14,7 +14,12 @@ from collections.abc import Iterable, Mapping
 
 from waterair.envs.config import ACTION_KEYS, OBSERVATION_EXTRAS, SENSOR_KEYS, EnvConfig
 from waterair.envs.controllers import CONTROLLERS
+from waterair.envs.prediction import PredictionBound
 from waterair.evaluation.rollouts import REFERENCES, JoinedPolicy, Sensed, reference_name
+
+SENSED = (*CONTROLLERS, PredictionBound.name)
+"""The references that read the sensing: the classical controllers, and the prediction bound (its receiver's delay
+is the reading's latency)."""
 
 
 def policy_groups(base: EnvConfig, baselines: list[str], learned, together: bool = True) -> list[tuple]:
@@ -23,13 +28,14 @@ def policy_groups(base: EnvConfig, baselines: list[str], learned, together: bool
 
     Baselines and controllers use the scenario's environment with every observation part they read
     (``required_extras``). Where a learned policy senses differently from the scenario (its own
-    training sensor), the classical controllers also run with that sensing, labelled with it, so
-    that each policy has its classical competitor with the same sensing. ``together=False`` gives
+    training sensor), the classical controllers and the prediction bound (:data:`SENSED`) also run with
+    that sensing, labelled with it, so that each policy has its classical competitor and its bound with the
+    same sensing. ``together=False`` gives
     every policy its own group (own rollout): slower, less memory.
     """
     reference = reading(base, baselines)
     members = [(name, name) for name in baselines]
-    controllers = [name for name in baselines if name in CONTROLLERS]
+    controllers = [name for name in baselines if name in SENSED]
     labels: list[str] = []
     for sensing in dict.fromkeys(tuple(c.sensing.items()) for _, c, _ in learned):
         if controllers and dict(sensing) != reference.sensing:

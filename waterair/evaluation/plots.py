@@ -34,13 +34,15 @@ STYLES = {
 }
 """Colour, marker, line style and width of the upper bound and each baseline: every policy differs in all four."""
 SENSING_STYLES = {
+    "prediction_bound": ("plum", "3", (0, (3, 1, 1, 1, 1, 1)), 1.5),
     "beacon_tracker": ("olivedrab", "8", (0, (8, 2, 2, 2)), 1.7),
     "beacon_predictor": ("darkslategray", "+", (0, (6, 2, 1, 2, 1, 2)), 1.7),
     "kalman_tracker": ("steelblue", "4", (0, (10, 1, 2, 1)), 1.7),
     "aoa_tracker": ("darkmagenta", "<", (0, (2, 2)), 1.6),
     "intensity_dither": ("saddlebrown", ">", (0, (4, 2, 1, 2)), 1.4),
 }
-"""The classical controllers run again with a learned policy's own sensing (labelled with it)."""
+"""The classical controllers and the prediction bound run again with a learned policy's own sensing (labelled with
+it)."""
 LEARNED_STYLES = (
     ("tab:blue", "D", "-", 2.2),
     ("tab:red", "P", "-", 2.2),
