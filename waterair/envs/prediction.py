@@ -8,9 +8,9 @@ controller that knows its actuator commands ahead by, as ``kalman_tracker`` does
 D = 1 + lag/Δt steps at the transmitter and D = 1 + ``latency_steps`` + lag/Δt at the receiver (:func:`delays`).
 What predicting from the path's past could win back of that delay is bounded, among linear predictors, by the one
 of least mean-square error, which depends only on the process's second-order statistics: the sea's spectrum and
-the ends' motion processes. This reference is that oracle. Its coefficients solve the
-normal equations (Wiener-Hopf, as least squares; Brockwell and Davis, *Time Series: Theory and Methods*, Springer
-1991, §5.1) with the statistics estimated on calibration links of the same configuration and seeds of their own
+the ends' motion processes. This reference is that oracle. Its coefficients solve the normal equations
+(Wiener-Hopf, as least squares; Brockwell and Davis, *Time Series: Theory and Methods*, Springer 1991, §5.1) with
+the statistics estimated on calibration links of the same configuration and seeds of their own
 (:data:`CALIBRATION_SEED`), per scenario point (link i is point i mod P, :mod:`waterair.envs.draws`).
 
 The state s_t is the four tilts (v_x, v_y) the exact path gives the transmitter and the receiver. An end of delay
@@ -228,7 +228,7 @@ class PredictionBound(PreviousPathTracking):
         past = self.history[:, k - 1 : k + ORDER]  # [n, ORDER + 1, 4]: up to s_{t+1-k}
         ahead = past[:, 0] + (self.coefficients[k][groups] @ features(past, self.calms[:, k - 1]).unsqueeze(-1))[..., 0]
         ready = (self.known > ORDER + k - 1) & smooth(past, self.gates[k][groups][:, None, None])
-        oldest = (torch.minimum(self.known, torch.full_like(self.known, k)) - 1).clamp(min=0)  # the last path known
+        oldest = (self.known.clamp(max=k) - 1).clamp(min=0)  # the last path known
         last = self.history.gather(1, oldest.view(-1, 1, 1).expand(-1, 1, 4))[:, 0]
         return torch.where(ready.unsqueeze(-1), ahead, last)
 
@@ -250,7 +250,9 @@ class PredictionBound(PreviousPathTracking):
         self.known = torch.where(valid & ~started, self.known + 1, valid.long())
         groups = torch.arange(rows, device=state.device) % self.points
         forecasts = {k: self._forecast(k, groups) for k in self.horizons}
-        tx, rx = (pointing(carried(forecasts, delay)[:, 2 * e : 2 * e + 2].to(flat_tx.dtype), up=e == 0)
-                  for e, delay in enumerate(self.delays))  # fmt: skip
+        ends = [
+            carried(forecasts, delay)[:, 2 * e : 2 * e + 2].to(flat_tx.dtype) for e, delay in enumerate(self.delays)
+        ]
+        tx, rx = pointing(ends[0], up=True), pointing(ends[1], up=False)
         found = valid.unsqueeze(-1)
         return torch.where(found, tx, flat_tx), torch.where(found, rx, flat_rx)

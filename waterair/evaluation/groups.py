@@ -1,11 +1,11 @@
 """Which policies of an evaluation run side by side in one batch, and how each acts there.
 
 Policies that step alike run as replicas of one environment on identical seas (:mod:`waterair.evaluation.rollouts`):
-the baselines and classical controllers in the scenario's interface, the controllers once more with each sensor a
-learned policy was trained with, and every learned policy whose step is the group's. A replica may observe fewer
-parts or frames than the group, act another way (a residual on its base, its own range) and sense another way (its
-latency, noise, saturation, thresholds): it reads its own columns, and acts and senses its own way
-(``env.replica_actions``, ``env.replica_sensing``), as it would alone (:data:`SHARED_STEP`).
+the baselines and classical controllers in the scenario's interface, the controllers and the prediction bound once
+more with each sensor a learned policy was trained with, and every learned policy whose step is the group's. A
+replica may observe fewer parts or frames than the group, act another way (a residual on its base, its own range)
+and sense another way (its latency, noise, saturation, thresholds): it reads its own columns, and acts and senses its
+own way (``env.replica_actions``, ``env.replica_sensing``), as it would alone (:data:`SHARED_STEP`).
 """
 
 from __future__ import annotations
@@ -30,20 +30,19 @@ def policy_groups(base: EnvConfig, baselines: list[str], learned, together: bool
     (``required_extras``). Where a learned policy senses differently from the scenario (its own
     training sensor), the classical controllers and the prediction bound (:data:`SENSED`) also run with
     that sensing, labelled with it, so that each policy has its classical competitor and its bound with the
-    same sensing. ``together=False`` gives
-    every policy its own group (own rollout): slower, less memory.
+    same sensing. ``together=False`` gives every policy its own group (own rollout): slower, less memory.
     """
     reference = reading(base, baselines)
     members = [(name, name) for name in baselines]
-    controllers = [name for name in baselines if name in SENSED]
+    sensed = [name for name in baselines if name in SENSED]
     labels: list[str] = []
     for sensing in dict.fromkeys(tuple(c.sensing.items()) for _, c, _ in learned):
-        if controllers and dict(sensing) != reference.sensing:
+        if sensed and dict(sensing) != reference.sensing:
             label = sensing_label(dict(sensing))
             labels.append(label)
             if labels.count(label) > 1:  # two sensor settings that read alike
                 label = f"{label} #{labels.count(label)}"
-            members += [(f"{name} ({label})", Sensed(name, dict(sensing))) for name in controllers]
+            members += [(f"{name} ({label})", Sensed(name, dict(sensing))) for name in sensed]
     if not together:
         alone = [(reference.replace(**getattr(m, "sensing", {})), [(label, m)]) for label, m in members]
         return alone + [(c, [(p.label, a)]) for p, c, a in learned]
