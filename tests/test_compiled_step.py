@@ -367,8 +367,9 @@ def test_a_groups_graph_in_an_evaluation_does_not_depend_on_the_groups_before_it
 REALISTIC = {"latency_steps": 1, "intensity_noise": 0.05, "intensity_noise_floor": 1e-3, "intensity_saturation": 4.0,
              "spot_noise_rad": 1e-3, "spot_threshold": 0.01, "beacon_noise_rad": 1e-3,
              "beacon_threshold": 0.01}  # fmt: skip
-ACTING = ({}, {"residual_deg": 5.0}, {"action_mode": "delta"})
-"""Three replicas acting three ways: residuals on the quadrant tracker within 1° and 5°, slew steps."""
+ACTING = ({}, {"residual_base": "kalman_tracker", "residual_deg": 5.0}, {"action_mode": "delta"})
+"""Three replicas acting three ways: residuals on the quadrant tracker within 1°, on the Kalman tracker within 5°
+(the tracks the state keeps followed, whichever way the batch's configuration acts), slew steps."""
 SENSING = ({}, REALISTIC, {"latency_steps": 2, "intensity_saturation": 0.3, "spot_threshold": 0.2})
 """Three replicas sensing three ways: ideal, realistic, two steps late with a detector that saturates and sees
 little (the quadrant tracker under the residuals reads the latency too)."""
@@ -396,8 +397,8 @@ def test_replicas_that_act_or_sense_their_own_ways_each_step_as_an_environment_o
     way, on the same seas, actions and sensor noise; compiled (traced by dynamo, run eagerly: the graph's logic,
     not inductor's code) as eager. The paper's single path, float64. With the ends moving, the motion's draws are
     the same whatever the replicas' sensing (a noiseless sensor draws its reading's nonce too)."""
-    base = preset_config("quadrant", "ideal", 6, **FIXED_LINK, **PAPER, **ends)
-    base = base.replace(replicas=3, residual_base="aoa_tracker", residual_deg=1.0, dtype="float64")
+    base = preset_config("beacon", "ideal", 6, **FIXED_LINK, **PAPER, **ends)
+    base = base.replace(replicas=3, residual_base="aoa_tracker", residual_deg=1.0, residual_beams=None, dtype="float64")
     ways = [{**a, **b} for a, b in zip(acting or [{}] * 3, sensing or [{}] * 3, strict=True)]
     actions = torch.linspace(-1.0, 1.0, 4 * 6 * 4, dtype=torch.float64).reshape(4, 6, 4).sin()
     alike = [rollout(WaterAirEnv(base.replace(**way)), actions) for way in ways]

@@ -10,8 +10,8 @@ import torch
 
 from waterair.envs import platforms
 from waterair.envs.config import EnvConfig
+from waterair.envs.drives import flat_tilts
 from waterair.envs.env import WaterAirEnv
-from waterair.envs.kernel import flat_tilts
 from waterair.evaluation.rollouts import kinematic, rollout_policies
 from waterair.physics.motion import attitudes
 

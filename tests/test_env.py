@@ -295,7 +295,7 @@ def test_observation_layout_names_every_part_in_order():
 
 
 def test_every_action_mode_and_residual_base_the_config_allows_is_one_entry_of_the_steps_registries():
-    from waterair.envs import config, kernel
+    from waterair.envs import bases, config, kernel
 
     assert set(kernel.ACTION_MODES) == set(config.ACTION_MODES)
-    assert set(kernel.RESIDUAL_BASES) == set(config.RESIDUAL_BASES)
+    assert set(bases.RESIDUAL_BASES) == set(config.RESIDUAL_BASES)

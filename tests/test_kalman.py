@@ -1,5 +1,6 @@
 """The angle-and-rate Kalman filter (waterair.envs.kalman) against the textbook matrix form written here in float64,
-and kalman_tracker (waterair.envs.controllers) against the beacon tracker it filters."""
+kalman_tracker (waterair.envs.controllers) against the beacon tracker it filters, and the kalman_tracker residual
+base (waterair.envs.bases) against the controller."""
 
 from __future__ import annotations
 
@@ -173,11 +174,12 @@ def test_an_episode_starts_with_none_of_the_rate_carried_over_so_a_guessed_rate_
     tracker = KalmanTracker(env)
     td = env.reset()
     tracker.directions(td)
-    assert tracker.carried is not None
-    assert bool((tracker.carried.foretold > 0).all()) and bool((kalman.share(tracker.carried) == 0).all())
-    prior = tracker.carried.foretold  # faded once: one step's weight, λ (rate Δt)²
+    assert tracker.tracks is not None
+    carried = tracker.tracks.carried
+    assert bool((carried.foretold > 0).all()) and bool((kalman.share(carried) == 0).all())
+    prior = carried.foretold  # faded once: one step's weight, λ (rate Δt)²
     move = 3.0 * prior.sqrt()  # a move three times the prior's step, foretold exactly
-    after = kalman.carry(tracker.carried, move, move, 1.0)
+    after = kalman.carry(carried, move, move, 1.0)
     assert torch.allclose(kalman.share(after), torch.full_like(prior, 9.0 / 10.0))
 
 
@@ -214,3 +216,26 @@ def test_a_track_started_again_by_a_jump_points_ahead_only_once_it_has_held_read
     held = ahead[jump : jump + KalmanTracker.READY]  # the jump's step, then until READY readings within the gate
     assert max(held) < 0.1 * turn, held
     assert min(ahead[jump + KalmanTracker.READY + 2 :]) > 0.5 * turn, ahead  # ahead again
+
+
+def test_the_kalman_tracker_base_inside_the_step_points_where_the_controller_does_links_reset_alone_included():
+    """Residual actions of 0 on ``env.residual_base=kalman_tracker``: the base's tilts each step are the controller's
+    on the same observations, link by link (float64), the ends moving, a gimbal with a fine mirror at each end, the
+    drone's readings two steps late and both noisy, and two links reset on their own mid-episode (the tracks the
+    state keeps start again there, and only there). The filter matters: it points up to mrad off the beacon
+    tracker's reading."""
+    config = EnvConfig(num_envs=4, seed=5, dtype="float64", observation_extras=TWO_ENDED, compile_kernel=False,
+                       action_mode="residual", residual_base="kalman_tracker", latency_steps=2,
+                       spot_noise_rad=1e-3, beacon_noise_rad=1e-3, motion={"kind": "hover"},
+                       actuator={"kind": "gimbal_fsm"})  # fmt: skip
+    env = WaterAirEnv(config.replace(**paper_physics(n_freq=8, n_dir=4)))
+    controller, reactive, td = KalmanTracker(env), BeaconTracker(env), env.reset()
+    apart = []
+    for step in range(45):
+        expected = torch.cat([each[:, :2] for each in controller.directions(td)], -1)
+        torch.testing.assert_close(td["base_tilt"], expected, rtol=0, atol=1e-12)
+        apart.append((expected - torch.cat([each[:, :2] for each in reactive.directions(td)], -1)).abs().max())
+        td = env.step(td.set("action", torch.zeros(4, 4, dtype=F64)))["next"]
+        if step == 25:
+            td = env.reset(td.clone().set("_reset", torch.tensor([True, False, True, False]).unsqueeze(-1)))
+    assert max(apart) > 1e-4, apart

@@ -10,8 +10,8 @@ import torch
 from waterair.envs.baselines import FlatSeaSnell, PreviousPathTracking
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import AoATracker
+from waterair.envs.drives import flat_tilts
 from waterair.envs.env import WaterAirEnv
-from waterair.envs.kernel import flat_tilts
 from waterair.envs.rewards import Reward
 
 SMALL = dict(num_envs=6, sea={"n_wavenumbers": 12, "n_dir": 8}, seed=4)

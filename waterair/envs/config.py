@@ -42,10 +42,11 @@ from waterair.physics.motion import Motion
 from waterair.physics.sea import SeaState, sea_state
 
 ACTION_MODES = ("absolute", "delta", "residual")
-RESIDUAL_BASES = ("flat_snell", "aoa_tracker", "beacon_tracker")
-"""What residual actions correct: flat-sea Snell pointing, the quadrant-detector back-projection, or each end
-along its own reading (the beacon at the transmitter, the spot at the receiver)."""
-BASE_NEEDS = {"aoa_tracker": ("spot", "spot_valid"), "beacon_tracker": ("spot", "spot_valid", "beacon", "beacon_valid")}
+RESIDUAL_BASES = ("flat_snell", "aoa_tracker", "beacon_tracker", "kalman_tracker")
+"""What residual actions correct: flat-sea Snell pointing, the quadrant-detector back-projection, each end along
+its own reading (the beacon at the transmitter, the spot at the receiver), or along its Kalman track of it."""
+_BEACON_PARTS = ("spot", "spot_valid", "beacon", "beacon_valid")
+BASE_NEEDS = {"aoa_tracker": ("spot", "spot_valid"), "beacon_tracker": _BEACON_PARTS, "kalman_tracker": _BEACON_PARTS}
 """The observation parts each residual base reads."""
 ACTION_KEYS = ("action_mode", "residual_deg", "residual_beams", "residual_base", "actuated")
 """The keys that say how an action turns into tilts, which ``replica_actions`` may set per replica."""
@@ -87,7 +88,7 @@ class EnvConfig:
     action_mode: str = "absolute"  # absolute | delta | residual (on top of residual_base's pointing)
     residual_deg: float = 15.0  # residual mode: the largest deviation from the base controller's pointing
     residual_beams: float | None = None  # residual mode: the transmitter's, at most this many of its link's ω_D
-    residual_base: str = "flat_snell"  # residual mode: flat_snell | aoa_tracker | beacon_tracker (BASE_NEEDS)
+    residual_base: str = "flat_snell"  # residual mode: one of RESIDUAL_BASES (its readings: BASE_NEEDS)
     max_tilt_deg: float = 45.0  # largest pointing tilt from vertical
     max_slew_deg_s: float = 60.0  # delta mode: largest tilt change per second
     actuated: bool = True  # false: the ends point where commanded whatever env.actuator (the kinematic references)
@@ -335,7 +336,7 @@ class EnvConfig:
     def senses_beacon(self) -> bool:
         """Whether the step reads the beacon: its reading is observed, or the residual base follows it (the base's
         tilts are reported in every action mode)."""
-        return "beacon" in self.observation_extras or self.residual_base == "beacon_tracker"
+        return "beacon" in self.observation_extras or "beacon" in BASE_NEEDS.get(self.residual_base, ())
 
     @property
     def max_tilt(self) -> float:

@@ -14,6 +14,7 @@ import torch
 from waterair.envs.config import EnvConfig
 from waterair.envs.rewards import Reward
 from waterair.envs.sensors import Sensor
+from waterair.envs.tracks import TRACKED_BASE, TrackModel
 from waterair.physics.actuator import Actuator
 from waterair.physics.channel import Beacon, ChannelModel, Transceiver
 from waterair.physics.motion import Motion
@@ -77,12 +78,16 @@ class StepConstants:
     """How the ends move (``env.motion``); None: they stand still (``static``)."""
     motion_transitions: tuple = ()
     """Its oscillators' step (:meth:`Motion.transitions`), as floats: computed here, outside the step's graph."""
+    tracks: TrackModel | None = None
+    """Where a way of acting has ``kalman_tracker`` for its base (``env.residual_base``), what its tracks add to the sea
+    and how far they point ahead (:class:`~waterair.envs.tracks.TrackModel`); None: the state keeps no tracks."""
 
     @classmethod
     def of(cls, config: EnvConfig, sensor: Sensor, reward: Reward, channel: ChannelModel) -> StepConstants:
         solver = FixedNewtonOptions(iterations=config.newton_iterations)
         each = [Actions.of(c) for c in config.replica_configs()]
         distinct = list(dict.fromkeys(each)) if len(set(each)) > 1 else []
+        tracked = any(a.base == TRACKED_BASE for a in each)  # its tilts are reported in every action mode
         return cls(
             optics=channel.optics,
             sensor=sensor,
@@ -104,6 +109,7 @@ class StepConstants:
             actuator=config.actuator if config.actuator.moves and any(a.actuated for a in each) else None,
             motion=config.motion if config.motion.moves else None,
             motion_transitions=config.motion.transitions(config.dt) if config.motion.moves else (),
+            tracks=TrackModel.of(config) if tracked else None,
         )
 
     def for_links(self, divergence: torch.Tensor, replica: torch.Tensor | None = None) -> StepConstants:

@@ -12,7 +12,7 @@ import math
 
 import torch
 
-from waterair.envs import kalman
+from waterair.envs import tracks
 from waterair.envs.baselines import FlatSeaSnell, PointingPolicy
 from waterair.envs.sensors import back_projection, beacon_pointing, intensity_from_feature, read_parked
 from waterair.physics.channel import pointing
@@ -94,7 +94,8 @@ class BeaconPredictor(BeaconTracker):
 
 class KalmanTracker(BeaconTracker):
     """The beacon tracker's readings, each end's filtered and pointed ahead: a Kalman filter on each component's
-    angle and rate (:mod:`waterair.envs.kalman`), tuned from the configuration, not by hand.
+    angle and rate (:mod:`waterair.envs.tracks`, the filter the ``kalman_tracker`` residual base runs inside the
+    step), tuned from the configuration, not by hand.
 
     * The reading: each end's ``beacon_tracker`` direction, as a tilt; its variance the sensor's noise
       (``beacon_noise_rad`` at the transmitter, ``spot_noise_rad`` at the receiver), at least :data:`FLOOR`.
@@ -102,7 +103,7 @@ class KalmanTracker(BeaconTracker):
       slope's acceleration Σ a² k_c² ω⁴ / 2 per component c over the resolved harmonics, times the share of a
       slope the refracted light turns by (1 − n_air/n_water at the transmitter, n_water/n_air − 1 at the
       receiver); a track starts at the slope rate's variance, Σ a² k_c² ω² / 2 times the same. Where the ends
-      move (``env.motion``), the drone's drift and transit add theirs (:meth:`_motion_variances`).
+      move (``env.motion``), the drone's drift and transit add theirs (:func:`~waterair.envs.tracks.motion_terms`).
     * Pointing ahead over what separates the reading from the pointing it sets: one step at the transmitter,
       ``latency_steps + 1`` at the receiver, and the actuators' lag (``env.actuator``: how far the axis that
       points last trails a ramp commanded once a step; none without actuators), along the estimated rate times the
@@ -119,92 +120,42 @@ class KalmanTracker(BeaconTracker):
     """
 
     name = "kalman_tracker"
-    GATE = 4.0
-    FLOOR = 1e-4
-    """The smallest reading noise (rad) assumed: the detectors' resolution, where the sensor model has none."""
-    MEMORY = 4.0
-    """The time (s) over which the share of the rate that carries over fades (a few wave periods)."""
-    READY = 3
-    """The readings in a row within the gate a track takes before it points ahead: the rate of a track started
-    by a jump comes from the jump's end, and pointed along at once it set the held rate's tail where the drone
-    stands still (docs/results.md, "S6 and S7")."""
+    GATE, FLOOR, MEMORY, READY = tracks.GATE, tracks.FLOOR, tracks.MEMORY, tracks.READY
 
     def __init__(self, env, config=None):
         super().__init__(env, config)
-        self.track: kalman.Track | None = None  # [2 ends, n, 2 components]
-        self.carried: kalman.Carry | None = None  # of the same shape
-        self.last: torch.Tensor | None = None  # the last reading
-        self.held: torch.Tensor | None = None  # the readings in a row each track took, up to READY [2, n, 2]
+        self.tracks: tracks.Tracks | None = None  # [n, 2 ends, 2 components]
+        self.model = tracks.TrackModel.of(self.env.config)
 
-    def _sea_variances(self) -> tuple[torch.Tensor, torch.Tensor]:
-        """The white acceleration's and the starting rate's variances ``[2, B, 2]`` (ends, links, components)."""
-        sea = self.env.surface.harmonics
-        slope = sea.amplitude.double().square().unsqueeze(-1) * torch.stack((sea.kx, sea.ky), -1).double().square()
-        omega = sea.omega.double().unsqueeze(-1)
-        optics = self.env.optics
-        share = torch.tensor(
-            [1 - optics.n_air / optics.n_water, optics.n_water / optics.n_air - 1], dtype=torch.float64
-        )
-        acceleration = (slope * omega**4).sum(1) / 2, (slope * omega**2).sum(1) / 2  # [B, 2] each
-        sea_terms = [share.view(2, 1, 1).to(sea.omega.device) ** 2 * each.unsqueeze(0) for each in acceleration]
-        return tuple(each + motion for each, motion in zip(sea_terms, self._motion_variances(), strict=True))
-
-    def _motion_variances(self) -> tuple[torch.Tensor, torch.Tensor]:
-        """What the drone's own motion adds to both (``env.motion``; none where the ends stand still) ``[2, 1, 1]``:
-        a horizontal move of the drone turns each end's calm-sea direction by n_a (tx) or n_w (rx) over
-        n_w h + n_a d per metre (small angles); the drift's rate variance ω² σ² and its oscillator's driving
-        intensity 4 ζ ω³ σ² over a step, and the transit's speed², through those gains."""
-        motion, geometry, optics = self.env.config.motion, self.env.config.geometry, self.env.optics
-        if not motion.moves:
-            return torch.zeros(2, 1, 1, dtype=torch.float64), torch.zeros(2, 1, 1, dtype=torch.float64)
-        across = optics.n_water * geometry.rx_height + optics.n_air * geometry.tx_depth
-        gain = torch.tensor([optics.n_air, optics.n_water], dtype=torch.float64).view(2, 1, 1) / across
-        omega, sigma = 2.0 * math.pi / motion.drift_period, motion.drift_horizontal
-        speed = motion.transit_speed if motion.kind == "transit" else 0.0
-        acceleration = 4.0 * motion.drift_damping * omega**3 * sigma**2 / self.env.config.dt
-        return gain**2 * acceleration, gain**2 * ((omega * sigma) ** 2 + speed**2)
-
-    def _rows(self, variance: torch.Tensor, rows: int) -> torch.Tensor:
-        batch = variance.shape[1]
+    def _rows(self, rows: int):
+        """The seas of this controller's ``rows`` links: its environment's batch, or one replica's (the replicas
+        share their seas)."""
+        sea, batch = self.env.surface.harmonics, self.env.batch_size[0]
         if rows not in (batch, batch // self.env.config.replicas):
             raise ValueError(f"kalman_tracker acts on its environment's {batch} links or one replica's, not {rows}")
-        return variance[:, :rows]
+        return type(sea)(*(each[:rows] for each in sea))
 
     def directions(self, tensordict):
-        tracker = torch.stack(super().directions(tensordict))  # [2, n, 3]
+        tracker = torch.stack(super().directions(tensordict), 1)  # [n, 2, 3]
         reading = tracker[..., :2].double()
         observation, part = tensordict.get("observation"), self.env.observation_part
-        seen = torch.stack((part(observation, "beacon_valid")[:, 0], part(observation, "spot_valid")[:, 0])) > 0.5
+        seen = torch.stack((part(observation, "beacon_valid")[:, 0], part(observation, "spot_valid")[:, 0]), 1) > 0.5
         parked = torch.stack((parked_reading(self.env, observation, 0),
-                              parked_reading(self.env, observation, self.config.latency_steps)))  # fmt: skip
+                              parked_reading(self.env, observation, self.config.latency_steps)), 1)  # fmt: skip
         usable = (seen & ~parked).unsqueeze(-1).expand_as(reading)
         noise = torch.tensor([self.config.beacon_noise_rad, self.config.spot_noise_rad], dtype=torch.float64)
-        variance = noise.clamp(min=self.FLOOR).square().to(reading.device).view(2, 1, 1).expand_as(reading)
-        acceleration, rate = (self._rows(each, reading.shape[1]) for each in self._sea_variances())  # this episode's
-        fresh = kalman.begin(reading, variance, rate)
-        dt = self.env.config.dt
-        prior = kalman.Carry(torch.zeros_like(rate), rate * dt * dt)  # one step's weight that none carried over
-        if self.track is None or self.track.state.shape[:-1] != reading.shape:
-            self.track, usable = fresh, torch.zeros_like(usable)
-            self.carried, self.last = prior, reading
-            self.held = torch.zeros(reading.shape, dtype=torch.long, device=reading.device)
-        assert self.carried is not None and self.last is not None and self.held is not None
+        variance = noise.clamp(min=self.FLOOR).square().to(reading.device).view(1, 2, 1).expand_as(reading)
+        optics, sea = self.env.optics, self._rows(reading.shape[0])  # this episode's seas
+        if self.tracks is None or self.tracks.last.shape != reading.shape:
+            self.tracks = tracks.begin(reading, sea, optics.n_air, optics.n_water, self.model)
+            usable = torch.zeros_like(usable)
+        acceleration, rate = tracks.variances(reading, sea, optics.n_air, optics.n_water, self.model)
+        self.tracks = self.tracks._replace(acceleration=acceleration, rate=rate)
         starting = parked.unsqueeze(-1).expand_as(reading)  # an episode's start: its sea is a new one
-        self.carried = kalman.Carry(*(torch.where(starting, p, c) for p, c in zip(prior, self.carried, strict=True)))
-        predicted = kalman.predict(self.track, dt, acceleration)
-        updated, inside = kalman.update(predicted, reading, variance, self.GATE)
-        tracking = usable & inside  # both components of an end are tracked together
-        tracking = tracking.all(-1, keepdim=True).expand_as(tracking)
-        foretold = torch.where(tracking, self.track.state[..., 1] * dt, torch.zeros_like(reading))  # a fresh track's: 0
-        self.carried = kalman.carry(self.carried, reading - self.last, foretold, math.exp(-dt / self.MEMORY))
-        self.track, self.last = kalman.choose(tracking, updated, fresh), reading
-        self.held = torch.where(tracking, (self.held + 1).clamp(max=self.READY), torch.zeros_like(self.held))
-        lag = self.env.config.actuator.lag(dt)
-        lead = torch.tensor([dt + lag, dt * (self.config.latency_steps + 1) + lag], dtype=torch.float64)
-        lead = lead.to(reading.device).view(2, 1, 1) * kalman.share(self.carried) * (self.held >= self.READY)
-        tilt = torch.where(tracking, kalman.ahead(self.track, lead), reading)
-        tilt = tilt.to(tracker.dtype)
-        return pointing(tilt[0], up=True), pointing(tilt[1], up=False)
+        self.tracks = tracks.follow(self.tracks, reading, variance, usable, starting, self.env.config.dt)
+        leads = torch.tensor(self.model.leads(self.config.latency_steps), dtype=torch.float64)
+        tilt = tracks.aim(self.tracks, leads.to(reading.device).view(1, 2, 1)).to(tracker.dtype)
+        return pointing(tilt[:, 0], up=True), pointing(tilt[:, 1], up=False)
 
 
 class AoATracker(PointingPolicy):

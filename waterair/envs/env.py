@@ -265,7 +265,8 @@ class WaterAirEnv(EnvBase):
         prepared = self.channel.prepare(tx, rx, self.surface.unresolved)
         config = self.config
         latency = self.sensor.longest_latency
-        self.state = StepState.zeros(self.surface.harmonics, prepared, config.history_length, latency)
+        self.state = StepState.zeros(self.surface.harmonics, prepared, config.history_length, latency,
+                                     tracking=self.constants.tracks is not None)  # fmt: skip
         self.measurement = Measurement(
             gain=zeros(),
             gain_upper_bound=zeros(),
@@ -312,7 +313,8 @@ class WaterAirEnv(EnvBase):
         prepared = constants.channel.prepare(tx, rx, self.surface.unresolved[rows])
         flat = flat_sea_point(tx, rx, self.optics.n_water, self.optics.n_air)
         seas = self.surface[rows]
-        at_rest = StepState.zeros(seas.harmonics, prepared, config.history_length, self.sensor.longest_latency)
+        at_rest = StepState.zeros(seas.harmonics, prepared, config.history_length, self.sensor.longest_latency,
+                                  tracking=self.constants.tracks is not None)  # fmt: skip
         if config.motion.moves:  # the motion's start, and the ends where it has them at t = 0
             at_rest = self._moving(at_rest, (distinct, copy, source), tx, rx)
             tx, rx, flat = at_rest.tx_position, at_rest.rx_position, at_rest.flat_point

@@ -23,22 +23,20 @@ from typing import NamedTuple
 
 import torch
 
-from waterair.envs import drives, platforms
+from waterair.envs import bases, drives, platforms
 from waterair.envs.config import OBSERVATION_EXTRAS, EnvConfig
 from waterair.envs.constants import Actions, StepConstants
-from waterair.envs.drives import flat_tilts, limit_tilt
+from waterair.envs.drives import limit_tilt
 from waterair.envs.packets import deliver, pack
 from waterair.envs.sensors import (
     SensorNoise,
-    back_projection,
-    beacon_pointing,
     intensity_feature,
     read_parked,
     spot_position,
 )
 from waterair.envs.state import Measurement, Moved, Outputs, Packet, Readings, StepResult, StepState
 from waterair.physics.channel import LightSamples, LinkEnds, pointing, read_beacon
-from waterair.physics.optics import per_link, unit_vector
+from waterair.physics.optics import per_link
 from waterair.physics.paths import FixedNewtonOptions, Iterate, PathSolution, finish_path, near_calm_point
 from waterair.physics.paths.fixed import fixed_newton_terms
 
@@ -136,48 +134,14 @@ def base_tilts(
     c: StepConstants, state: StepState, base: str | None = None, delivered: Packet | None = None
 ) -> torch.Tensor:
     """The residual base controller's tilts ``[B, 4]`` for the next action (``base``, default ``env.residual_base``;
-    :data:`RESIDUAL_BASES`), from the packet ``delivered`` of ``state`` (default: :func:`deliver`'s)."""
+    :data:`~waterair.envs.bases.RESIDUAL_BASES`), from the packet ``delivered`` of ``state`` (default:
+    :func:`deliver`'s)."""
     delivered = deliver(state.packets, c.sensor.latency_steps) if delivered is None else delivered
-    return RESIDUAL_BASES[base or c.actions.base](c, state, delivered.readings)
-
-
-def flat_snell_base(c: StepConstants, state: StepState, delivered: Readings) -> torch.Tensor:
-    """``flat_snell``: both ends at the calm-sea path point (as they know it)."""
-    tx, rx, point = platforms.known_ends(c, state)
-    return flat_tilts(point, tx, rx)
-
-
-def beacon_tracker_base(c: StepConstants, state: StepState, delivered: Readings) -> torch.Tensor:
-    """``beacon_tracker``: each end along its own reading, the beacon's at the transmitter, the spot's at the
-    receiver (flat-sea Snell where it has none)."""
-    assert c.beacon is not None  # EnvConfig.senses_beacon: a beacon base reads the beacon
-    tx, rx, point = platforms.known_ends(c, state)
-    flat = unit_vector(point - tx), unit_vector(point - rx)
-    tx_dir, rx_dir = beacon_pointing(
-        (pointing(state.tx_tilt, up=True), delivered.beacon, delivered.beacon_valid[:, 0] > 0.5),
-        (delivered.rx_pointing, delivered.spot, delivered.spot_valid[:, 0] > 0.5),
-        flat,
-        c.beacon.half_fov,
-        c.optics.half_fov,
-    )
-    return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
-
-
-def aoa_tracker_base(c: StepConstants, state: StepState, delivered: Readings) -> torch.Tensor:
-    """``aoa_tracker``: the quadrant detector's back-projection of the delivered packet (flat-sea Snell where it
-    has no reading, or only the one read with the gimbals parked at the reset)."""
-    tx, rx, point = platforms.known_ends(c, state)
-    flat = unit_vector(point - tx), unit_vector(point - rx)
-    seen = (delivered.spot_valid[:, 0] > 0.5) & ~read_parked(state.steps, c.sensor.latency_steps)
-    tx_dir, rx_dir = back_projection(delivered.rx_pointing, delivered.spot, seen, tx, rx, flat, c.optics.half_fov)
-    return torch.cat((tx_dir[:, :2], rx_dir[:, :2]), dim=-1)
+    return bases.RESIDUAL_BASES[base or c.actions.base](c, state, delivered.readings)
 
 
 ACTION_MODES = {"absolute": absolute_tilts, "delta": delta_tilts, "residual": residual_tilts}
 """How an action moves the gimbals, by ``env.action_mode``: each ``f(c, actions, state, action)`` → both tilts."""
-RESIDUAL_BASES = {"flat_snell": flat_snell_base, "aoa_tracker": aoa_tracker_base, "beacon_tracker": beacon_tracker_base}
-"""What residual actions correct, by ``env.residual_base``: each ``f(c, state, delivered readings)`` → the tilts
-``[B, 4]``."""
 
 
 def predicted_point(state: StepState) -> torch.Tensor:
@@ -311,6 +275,7 @@ def _conclude(c: StepConstants, state: StepState, moved: Moved, solution: Iterat
         packets=packets,
     )
     delivered = deliver(new.packets, c.sensor.latency_steps)  # what the controller reads next, once
+    new = replace(new, tracks=bases.followed(c, new, delivered.readings))
     new = replace(new, base_tilt=base_tilts(c, new, delivered=delivered))
     reward = c.reward(measurement.intensity, misalignment(c, measurement), measurement.gain, state.divergence)
     outputs = Outputs(
@@ -339,7 +304,9 @@ def start(
         c, resting, path, light, links.reference_gain, links.flat_point, noise
     )
     packets = pack(readings, links.history).unsqueeze(1).expand_as(links.packets)
-    return replace(links, point=stored, previous_point=stored, last_feature=feature, packets=packets), measurement
+    links = replace(links, point=stored, previous_point=stored, last_feature=feature, packets=packets)
+    delivered = deliver(links.packets, c.sensor.latency_steps).readings
+    return replace(links, tracks=bases.followed(c, links, delivered, start=True)), measurement
 
 
 def step(c: StepConstants, state: StepState, action: torch.Tensor, noise: SensorNoise | None) -> StepResult:

@@ -15,6 +15,7 @@ from typing import NamedTuple
 
 import torch
 
+from waterair.envs import tracks
 from waterair.envs.sensors import packet_sizes
 from waterair.physics.actuator import DRIVE_WIDTH
 from waterair.physics.motion import MOTION_WIDTH
@@ -95,6 +96,8 @@ class StepState:
             (the beacon's parts: the first).
         base_tilt: the residual base controller's tilts ``[B, 4]`` for the next action, from this state (computed
             once, where a step concludes or the environment resets, and read by the next step's actions).
+        tracks: each end's Kalman tracks ``[B, 2, 2, tracks.WIDTH]`` (:meth:`waterair.envs.tracks.Tracks.packed`)
+            where a residual base follows them (``kalman_tracker``), updated where a step concludes; else ``[B, 0]``.
         prepared: the channel's per-episode constants, a named tuple (``ChannelModel.Prepared``) of ``[B, ...]``.
         home, known, motion: where the ends move (``env.motion``; zeros otherwise): each link's T and R as its
             reset drew them and the drone's transit velocity ``[B, 3, 3]``; T, R and their calm-sea point as the
@@ -122,16 +125,20 @@ class StepState:
     action_history: torch.Tensor
     packets: torch.Tensor
     base_tilt: torch.Tensor
+    tracks: torch.Tensor
     prepared: tuple
     home: torch.Tensor
     known: torch.Tensor
     motion: torch.Tensor
 
     @classmethod
-    def zeros(cls, sea: Harmonics, prepared: tuple, history_length: int, latency_steps: int) -> StepState:
+    def zeros(
+        cls, sea: Harmonics, prepared: tuple, history_length: int, latency_steps: int, tracking: bool = False
+    ) -> StepState:
         """A state of zeros for the links of ``sea`` (their number, device and float dtype), with room for
-        ``history_length`` features and actions, ``latency_steps + 1`` packets in flight and the channel's
-        ``prepared`` constants (one link's worth of each is their shape)."""
+        ``history_length`` features and actions, ``latency_steps + 1`` packets in flight, the channel's
+        ``prepared`` constants (one link's worth of each is their shape) and, where ``tracking``, the Kalman
+        tracks."""
         batch, dtype, device = sea.omega.shape[0], sea.omega.dtype, sea.omega.device
 
         def zeros(*shape: int, kind: torch.dtype = dtype) -> torch.Tensor:
@@ -157,6 +164,7 @@ class StepState:
             action_history=zeros(history_length, 4),
             packets=zeros(latency_steps + 1, sum(packet_sizes(history_length))),
             base_tilt=zeros(4),
+            tracks=zeros(2, 2, tracks.WIDTH) if tracking else zeros(0),
             prepared=type(prepared)(*(zeros(*value.shape[1:]) for value in prepared)),
             home=zeros(3, 3),
             known=zeros(3, 3),

@@ -21,7 +21,7 @@ from waterair.core.devices import resolve_device
 from waterair.core.files import atomic_write_json, atomic_write_text
 from waterair.core.threads import AUTO as AUTO_THREADS
 from waterair.core.threads import choose_threads, torch_threads
-from waterair.envs.controllers import controller_for
+from waterair.envs.controllers import CONTROLLERS, controller_for
 from waterair.envs.operating_point import FIXED
 from waterair.evaluation.compiling import compiled_group
 from waterair.evaluation.groups import reading
@@ -37,8 +37,9 @@ from waterair.training.config import is_group_choice, validate
 from waterair.training.run_log import RunLog
 
 FINAL_POLICIES = {"straight_facing": "straight_facing", "flat_snell": "flat_snell"}
-"""Baselines the closing evaluation scores the trained agent against (label → baseline name), with
-the classical controller of the agent's sensing (:func:`waterair.envs.controllers.controller_for`)."""
+"""Baselines the closing evaluation scores the trained agent against (label → baseline name), with the classical
+controller its residual actions correct, or else the one of its sensing
+(:func:`~waterair.envs.controllers.controller_for`)."""
 
 
 def train(
@@ -207,16 +208,19 @@ def final_evaluation(cfg: DictConfig, actor, auto_compile: bool = False) -> dict
     """The greedy actor, straight-facing and flat-Snell on the same seas at the training wind and offset.
 
     Evaluation's own runner and metrics (``eval`` group: realisations, steps, seed); keys are
-    ``<policy>/<metric>`` with the policy ``agent``, ``straight_facing``, ``flat_snell``, the
-    classical controller (``aoa_tracker`` or ``intensity_dither``) or ``upper_bound``. ``auto_compile``: each
-    group compiles when its frames repay it (:func:`waterair.evaluation.compiling.compiled_group`), else as
-    training ran.
+    ``<policy>/<metric>`` with the policy ``agent``, ``straight_facing``, ``flat_snell``, the classical
+    controller (its residual base where that is one, else the one of its sensing) or ``upper_bound``.
+    ``auto_compile``: each group compiles when its frames repay it
+    (:func:`waterair.evaluation.compiling.compiled_group`), else as training ran.
     """
     geometry = cfg.env.geometry
     point = ((float(cfg.env.sea.wind), float(geometry.offset_ratio), float(geometry.offset_azimuth_deg)),)
     scenario = Scenario("train", "training point", None, point, cfg.eval.realisations, cfg.eval.steps, cfg.eval.seed)
     config = env_config(cfg)
-    references = {**FINAL_POLICIES, (controller := controller_for(config.observation_extras)): controller}
+    controller = controller_for(config.observation_extras)
+    if config.action_mode == "residual" and config.residual_base in CONTROLLERS:  # the one it corrects
+        controller = config.residual_base
+    references = {**FINAL_POLICIES, controller: controller}
     # The references point in absolute tilts (a residual action's range need not reach their pointing), read
     # one frame of what they need and have no residual base to compute (flat-sea Snell's reads nothing): the
     # interface evaluate.py runs them in, so that evaluate.py on this run loads their compiled step from
