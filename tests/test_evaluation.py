@@ -190,15 +190,15 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
         # the upper bound's outage is at most every policy's: the same seas, the most light at each step
         bound = next(r for r in data["rows"] if r["policy"] == "upper_bound" and _same_point(r, row))
         assert bound["outage"] <= row["outage"] and bound["ber"] <= row["ber"] + 1e-15, row
-    # the learned policy against the controller its residual actions correct (realistic[1], the beacon tracker),
+    # the learned policy against the controller its residual actions correct (realistic[2], the Kalman tracker),
     # sensing as it does, at every point
     assert [(c["scenario"], c["policy"], c["base"]) for c in data["comparisons"]] == [
-        (name, labels[1], realistic[1]) for name, count in points.items() for _ in range(count)
+        (name, labels[1], realistic[2]) for name, count in points.items() for _ in range(count)
     ]
     for comparison in data["comparisons"]:
         assert set(comparison) == set(COMPARISON_KEYS)
         row = next(r for r in data["rows"] if r["policy"] == labels[1] and _same_point(r, comparison))
-        base = next(r for r in data["rows"] if r["policy"] == realistic[1] and _same_point(r, comparison))
+        base = next(r for r in data["rows"] if r["policy"] == realistic[2] and _same_point(r, comparison))
         assert comparison["ratio_to_ub_diff"] == pytest.approx(row["ratio_to_ub"] - base["ratio_to_ub"], abs=1e-12)
         assert comparison["ratio_to_ub_diff_lo"] <= comparison["ratio_to_ub_diff"] <= comparison["ratio_to_ub_diff_hi"]
         assert (comparison["rate_held"], comparison["base_rate_held"]) == (row["rate_held"], base["rate_held"])
@@ -222,7 +222,7 @@ def test_evaluation_of_a_run_writes_the_schema_every_figure_and_the_report(tiny_
     assert "Acquisition (the first 0.5 s of each realisation) and tracking (the rest) apart" in report
     assert "## Learned policies against their classical bases" in report
     assert (
-        f"| S1 | 12 m/s, 10% | {labels[1]} | {realistic[1]} | {data['comparisons'][0]['ratio_to_ub_diff']:+.4f} ["
+        f"| S1 | 12 m/s, 10% | {labels[1]} | {realistic[2]} | {data['comparisons'][0]['ratio_to_ub_diff']:+.4f} ["
         in report
     )
 

@@ -129,8 +129,8 @@ KEYS: dict[str, tuple[str, str]] = {
     "residual_beams": ("ω_D", "(0, 100]: caps the transmitter's correction at k·ω_D"),
     "residual_base": (
         "–",
-        "flat_snell, aoa_tracker (needs `spot`, `spot_valid`), beacon_tracker (needs those and `beacon`, "
-        "`beacon_valid`)",
+        "flat_snell, aoa_tracker (needs `spot`, `spot_valid`), beacon_tracker and kalman_tracker (need those and "
+        "`beacon`, `beacon_valid`)",
     ),
     "max_tilt_deg": ("deg", "(0, 90)"),
     "max_slew_deg_s": ("deg/s", "(0, 1e5]"),
