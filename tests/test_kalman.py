@@ -10,7 +10,7 @@ import pytest
 import torch
 from test_beacon import LATE, TWO_ENDED, paper_physics
 
-from waterair.envs import kalman
+from waterair.envs import kalman, tracks
 from waterair.envs.config import EnvConfig
 from waterair.envs.controllers import BeaconTracker, KalmanTracker
 from waterair.envs.env import WaterAirEnv
@@ -239,3 +239,28 @@ def test_the_kalman_tracker_base_inside_the_step_points_where_the_controller_doe
         if step == 25:
             td = env.reset(td.clone().set("_reset", torch.tensor([True, False, True, False]).unsqueeze(-1)))
     assert max(apart) > 1e-4, apart
+
+
+@pytest.mark.parametrize(
+    ("own", "ways", "tracked"),
+    [
+        ("kalman_tracker", ({"residual_base": "beacon_tracker"}, {"residual_base": "aoa_tracker"}), True),
+        ("aoa_tracker", ({}, {"action_mode": "absolute", "residual_base": "kalman_tracker"}), False),
+        ("aoa_tracker", ({}, {"residual_base": "kalman_tracker"}), True),
+    ],
+    ids=["its-own-base-read", "a-replicas-unread", "a-replicas-residual"],
+)
+def test_the_state_keeps_tracks_where_a_kalman_base_is_read_whatever_the_replicas_ways(own, ways, tracked):
+    """The batch's own base is read every step (its tilts are reported in every action mode), a replica's only where
+    it acts residually: the step keeps and follows the tracks exactly then, and steps either way."""
+    config = EnvConfig(num_envs=4, seed=1, observation_extras=TWO_ENDED, compile_kernel=False, action_mode="residual",
+                       residual_base=own, replicas=2, replica_actions=ways, max_steps=6)  # fmt: skip
+    env = WaterAirEnv(config.replace(**paper_physics(n_freq=8, n_dir=4)))
+    td = env.reset()
+    for _ in range(4):
+        td = env.step(td.set("action", torch.zeros(4, 4)))["next"]
+    assert (env.constants.tracks is not None) == tracked
+    assert env.state.tracks.shape[1:] == ((2, 2, tracks.WIDTH) if tracked else (0,))
+    assert bool(torch.isfinite(td["base_tilt"]).all() and torch.isfinite(td["observation"]).all())
+    if tracked:  # followed: every link's tracks hold the readings since its reset
+        assert bool((tracks.Tracks.unpacked(env.state.tracks).held > 0).any())

@@ -56,11 +56,10 @@ def kalman_tracker_base(c: StepConstants, state: StepState, delivered: Readings)
     """``kalman_tracker``: each end along its Kalman track of the beacon tracker's reading, ahead over its delay
     (the state's tracks, which :func:`followed` brought up to ``delivered``)."""
     assert c.tracks is not None  # StepConstants.of: the state keeps tracks where a way corrects them
-    now = state.time
-    leads = [torch.zeros_like(now) + torch.as_tensor(lead, dtype=now.dtype, device=now.device)
-             for lead in c.tracks.leads(c.sensor.latency_steps)]  # fmt: skip
-    tilts = tracks.aim(tracks.Tracks.unpacked(state.tracks), torch.stack(leads, -1).to(now.dtype).unsqueeze(-1))
-    return tilts.flatten(1)
+    now = state.time  # each row's lead, as the latency may be each row's
+    leads = torch.stack([torch.zeros_like(now) + torch.as_tensor(lead, dtype=now.dtype, device=now.device)
+                         for lead in c.tracks.leads(c.sensor.latency_steps)], -1)  # fmt: skip
+    return tracks.aim(tracks.Tracks.unpacked(state.tracks), leads.unsqueeze(-1)).flatten(1)
 
 
 def followed(c: StepConstants, state: StepState, delivered: Readings, start: bool = False) -> torch.Tensor:

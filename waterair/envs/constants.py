@@ -87,14 +87,16 @@ class StepConstants:
         solver = FixedNewtonOptions(iterations=config.newton_iterations)
         each = [Actions.of(c) for c in config.replica_configs()]
         distinct = list(dict.fromkeys(each)) if len(set(each)) > 1 else []
-        tracked = any(a.base == TRACKED_BASE for a in each)  # its tilts are reported in every action mode
+        actions = each[0] if not distinct else Actions.of(config)  # every replica's way where they share one
+        # the batch's base is read every step (its tilts are reported in every action mode), a replica's residually
+        tracked = actions.base == TRACKED_BASE or any(a.mode == "residual" and a.base == TRACKED_BASE for a in each)
         return cls(
             optics=channel.optics,
             sensor=sensor,
             reward=reward,
             solver=solver,
             tolerance=solver.tolerance(getattr(torch, config.dtype)),
-            actions=each[0] if not distinct else Actions.of(config),  # every replica's way where they share one
+            actions=actions,
             max_tilt=config.max_tilt,
             slew_step=math.sin(math.radians(config.max_slew_deg_s * config.dt)),
             dt=config.dt,
@@ -103,7 +105,7 @@ class StepConstants:
             vertical_distance=config.geometry.tx_depth + config.geometry.rx_height,
             channel=channel,
             replicas=config.replicas,
-            beacon=config.beacon if config.senses_beacon else None,
+            beacon=config.beacon if config.senses_beacon or tracked else None,  # the tracks follow the beacon
             replica_actions=tuple(distinct),
             replica_choice=tuple(distinct.index(a) for a in each) if distinct else (),
             actuator=config.actuator if config.actuator.moves and any(a.actuated for a in each) else None,

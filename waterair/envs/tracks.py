@@ -83,6 +83,8 @@ class TrackModel(NamedTuple):
     def leads(self, latency_steps) -> tuple:
         """How far (s) each end points ahead of its reading: one step at the transmitter, ``latency_steps`` + 1 at
         the receiver (its reading comes over the return link), each plus the actuators' lag."""
+        if isinstance(latency_steps, torch.Tensor):  # each row's (int64): in float64, as the floats are
+            latency_steps = latency_steps.to(torch.float64)
         return self.dt + self.lag, self.dt * (latency_steps + 1) + self.lag
 
 
