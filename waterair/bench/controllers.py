@@ -14,6 +14,7 @@ import time
 import torch
 
 from waterair.envs.baselines import FlatSeaSnell
+from waterair.envs.config import BASE_NEEDS
 from waterair.envs.controllers import AoATracker, IntensityDither
 from waterair.envs.env import WaterAirEnv
 
@@ -26,8 +27,6 @@ REALISTIC = {
     "spot_threshold": 0.01,
 }
 """The env/sensor=realistic preset."""
-BEACON_PARTS = ("spot", "spot_valid", "beacon", "beacon_valid")
-"""What a residual base that follows each end's reading reads."""
 
 
 def bench_controllers(batch: int, steps: int, repeats: int, compile_kernel: bool, device: str) -> dict:
@@ -66,7 +65,7 @@ def _bases(batch: int, steps: int, repeats: int, compile_kernel: bool, device: s
     the realistic sensor, both ends sensed; the Kalman base's overhead over the beacon tracker's."""
     envs = {
         base: WaterAirEnv(num_envs=batch, seed=0, device=device, compile_kernel=compile_kernel, action_mode="residual",
-                          residual_base=base, observation_extras=BEACON_PARTS, beacon_noise_rad=1e-3, **REALISTIC)
+                          residual_base=base, observation_extras=BASE_NEEDS[base], beacon_noise_rad=1e-3, **REALISTIC)
         for base in ("beacon_tracker", "kalman_tracker")
     }  # fmt: skip
     samples: dict[str, list[float]] = {base: [] for base in envs}
