@@ -3,9 +3,11 @@
 import pytest
 import torch
 from conftest import TINY, compose_config, rejection, reloaded_scores
+from torch import nn
+from torchrl.modules import MLP, MultiAgentMLP
 
 from waterair.agents.networks import actor_for
-from waterair.agents.per_end import ACTIONS, ENDS
+from waterair.agents.per_end import ACTIONS, ENDS, per_end_columns
 from waterair.envs.config import EnvConfig
 from waterair.training import train
 from waterair.training.builders import env_config
@@ -56,6 +58,31 @@ def test_an_end_reads_the_other_ends_readings_only_through_the_return_channel(re
             assert arrived == (frame >= return_steps), (end, frame)
 
 
+def test_a_policy_file_of_an_mlp_per_end_loads_and_acts_as_those_mlps():
+    """Policy files from before the ends became TorchRL agents hold an MLP per end (``nets.tx``, ``nets.rx``) and each
+    end's columns (``tx_columns``); loaded into today's actor, it acts as those MLPs on their own columns, though the
+    two ends read different numbers of columns (the narrower one padded)."""
+    actor, config = per_end_actor(frames=2, return_steps=1)
+    columns = per_end_columns(config.observation_layout, config.frames, 1)
+    assert len(columns["tx"]) != len(columns["rx"])
+    torch.manual_seed(7)
+    nets = {
+        end: MLP(in_features=len(c), out_features=2, num_cells=[16], activation_class=nn.Tanh)
+        for end, c in columns.items()
+    }
+    earlier = {f"module.0.{end}_columns": torch.tensor(cols) for end, cols in columns.items()}
+    earlier |= {
+        f"module.0.nets.{end}.{key}": value for end, net in nets.items() for key, value in net.state_dict().items()
+    }
+    actor.load_state_dict(earlier)
+    observation = torch.randn(9, config.observation_size)
+    with torch.no_grad():
+        expected = torch.tanh(
+            torch.cat([nets[end](observation[:, torch.tensor(cols)]) for end, cols in columns.items()], dim=-1)
+        )
+        assert torch.allclose(actor(observation=observation), expected, rtol=0, atol=1e-6)
+
+
 def test_per_end_trains_saves_and_reloads_to_what_it_scored(tmp_path):
     """A short PPO run of per-end actors (the critic reads everything): its checkpoint and its exported policy, each
     reloaded with the training config's layout (its ``env.compile_kernel`` auto, as train.py saves it), score what
@@ -68,7 +95,9 @@ def test_per_end_trains_saves_and_reloads_to_what_it_scored(tmp_path):
     exported = export_policy(tmp_path / "run", tmp_path / "policy")
     for path in (tmp_path / "run" / "checkpoints" / "last.pt", exported):
         actor = reloaded_scores(cfg, metrics, path)
-        assert actor.module.module[0].nets["tx"][0].in_features < env_config(cfg).observation_size
+        ends = actor.module.module[0]
+        assert isinstance(ends.agents, MultiAgentMLP) and not ends.agents.centralized
+        assert (ends.mask.sum(-1) < env_config(cfg).observation_size).all()
 
 
 @pytest.mark.parametrize(

@@ -56,7 +56,8 @@ def actor_for(
 ) -> TensorDictModuleBase:
     """The actor of an ``actor`` group's option: ``mlp`` (:func:`make_actor`); ``gru``/``lstm``, a recurrent module
     of ``state_size`` × ``layers`` with that MLP on its features (:mod:`waterair.agents.recurrent`); ``per_end``, an
-    MLP per end on its own columns of ``observation``'s layout (:mod:`waterair.agents.per_end`)."""
+    agent per end (TorchRL's ``MultiAgentMLP``) on its own columns of ``observation``'s layout
+    (:mod:`waterair.agents.per_end`)."""
     zero_output, name = bool(network.get("zero_output", False)), network.get("name", "mlp")  # older configs: mlp
     hidden, activation = network["hidden"], network["activation"]
     if name == PER_END:
@@ -65,8 +66,7 @@ def actor_for(
         columns = per_end_columns(observation.observation_layout, observation.frames, network["return_steps"])
         module = PerEnd(columns, hidden, ACTIVATIONS[activation])
         if zero_output:
-            for net in module.nets.values():
-                _zero_last_layer(net)
+            module.zero_output()
         return TensorDictModule(nn.Sequential(module, nn.Tanh()), in_keys=["observation"], out_keys=["action"])
     if name not in CELLS:
         return make_actor(observation_size, action_size, hidden, activation, zero_output)

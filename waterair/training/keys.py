@@ -21,8 +21,8 @@ TRAINING_KEYS: dict[str, tuple[str, str]] = {
     "eval.seed": ("–", "≥ 0"),
     "actor.name": (
         "–",
-        "mlp; gru, lstm (a recurrent module on the observations, then the MLP); per_end (an MLP per end on its own "
-        "readings): docs/training.md",
+        "mlp; gru, lstm (a recurrent module on the observations, then the MLP); per_end (a MultiAgentMLP, an agent "
+        "per end on its own readings): docs/training.md",
     ),
     "actor.return_steps": (
         "steps",
