@@ -35,6 +35,13 @@ def test_on_the_full_channel_compiling_pays_from_fewer_frames(frames, cache, com
     assert f"{FullChannel.compile_frames[cache]:,} on the full channel" in why
 
 
+@pytest.mark.parametrize("actor", ["gru", "per_end"])
+def test_auto_leaves_the_update_of_a_recurrent_or_per_end_actor_eager(actor):
+    plan, why = compile_plan(compose_config("config", [f"actor={actor}"]), 400_000, "cold")
+    assert plan.env.compile_kernel is True and plan.compile_update is False
+    assert why.startswith("compiled environment step, eager update") and actor in why
+
+
 def test_a_setting_of_true_or_false_is_kept_whatever_the_frames():
     cfg = compose_config("config", ["compile_update=false", "env.compile_kernel=true"])
     plan, why = compile_plan(cfg, 800, "cold")

@@ -3,6 +3,7 @@
 import pytest
 import torch
 from conftest import TINY, compose_config, rejection, reloaded_scores
+from tensordict import TensorDict
 from torch import nn
 from torchrl.modules import MLP, MultiAgentMLP
 
@@ -83,6 +84,19 @@ def test_a_policy_file_of_an_mlp_per_end_loads_and_acts_as_those_mlps():
         assert torch.allclose(actor(observation=observation), expected, rtol=0, atol=1e-6)
 
 
+def test_the_per_end_actor_computes_with_the_weights_a_loss_swaps_in():
+    """TorchRL's losses hold an actor's weights apart (a target actor's are a copy) and swap them in for each call;
+    the ends' agents must compute with those, not with weights captured at construction (``MultiAgentMLP`` with
+    ``use_td_params=False`` would: its output under zero weights stays what it was)."""
+    actor, config = per_end_actor(frames=2, return_steps=1)
+    observation = torch.randn(4, config.observation_size)
+    zeros = TensorDict.from_module(actor, as_module=True).data.clone().zero_()
+    with torch.no_grad():
+        assert actor(observation=observation).abs().max() > 1e-3
+        with zeros.to_module(actor):
+            assert actor(observation=observation).abs().max() == 0.0
+
+
 def test_per_end_trains_saves_and_reloads_to_what_it_scored(tmp_path):
     """A short PPO run of per-end actors (the critic reads everything): its checkpoint and its exported policy, each
     reloaded with the training config's layout (its ``env.compile_kernel`` auto, as train.py saves it), score what
@@ -104,6 +118,7 @@ def test_per_end_trains_saves_and_reloads_to_what_it_scored(tmp_path):
     "overrides, message",
     [
         (["actor=per_end", "actor.return_steps=-1"], "actor.return_steps = -1 is out of range"),
+        (["actor=per_end", "compile_update=true"], "compile_update = true cannot compile actor=per_end's update"),
         (
             ["actor=per_end", "env/observation=intensity"],
             "actor=per_end cannot say which end observes action_history",

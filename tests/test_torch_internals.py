@@ -16,7 +16,9 @@ from collections.abc import Callable
 
 import pytest
 import torch
+from tensordict import TensorDict
 from torch._dynamo.testing import CompileCounter
+from torchrl.modules import MLP, MultiAgentMLP
 
 from tests.conftest import paper_physics
 from waterair.core import inductor
@@ -320,3 +322,28 @@ def test_an_extern_kernel_between_two_computations_compiles_them_as_c_functions_
         f"an extern kernel (torch.ops.waterair.written) between two computations no longer splits inductor's C++ "
         f"into two functions ({kernels[True]}): the compiled reception's cuts (light._apart) do nothing"
     )
+
+
+def test_a_multi_agent_mlp_whose_weights_a_loss_swaps_traces_anew_at_every_call():
+    """Why ``actor=per_end``'s update runs eagerly (:mod:`waterair.training.compiling`): TorchRL's ``MultiAgentMLP``
+    keeps its weights in a ``TensorDictParams``; a loss swaps its own copy in at each call, and a walk over the
+    modules (as tensordict's ``get_dist`` makes to build the policy's distribution) hashes that object by the
+    identity of what it holds, so dynamo traces every call anew. An MLP's plain parameters trace once. When the
+    first assertion fails, the per-end update can compile."""
+
+    def traced_under_swaps(net: torch.nn.Module) -> int:
+        weights = TensorDict.from_module(net, as_module=True)  # as TorchRL's losses hold an actor's weights
+        x = torch.randn(3, 2, 5)
+        counter = CompileCounter()
+        compiled = torch.compile(lambda x: net(x).sum() * len(list(net.modules())), backend=counter)
+        torch._dynamo.reset()
+        for _ in range(4):
+            with weights.to_module(net):
+                compiled(x)
+        return counter.frame_count
+
+    agents = MultiAgentMLP(
+        n_agent_inputs=5, n_agent_outputs=2, n_agents=2, centralized=False, share_params=False, num_cells=[8]
+    )
+    assert traced_under_swaps(agents) == 4
+    assert traced_under_swaps(MLP(in_features=5, out_features=2, num_cells=[8])) == 1

@@ -2,13 +2,17 @@
 
 Each is true, false or ``auto`` (:mod:`waterair.core.compiling` says when compiling pays). A recurrent actor's
 update stays eager on ``auto``: compiled, its recurrent module breaks the graph and the update is no faster (PPO,
-``actor=gru``, 1,600-frame batches on one thread: 230-330 frames/s either way, the compiles 60 s more).
+``actor=gru``, 1,600-frame batches on one thread: 230-330 frames/s either way, the compiles 60 s more). So does
+``actor=per_end``'s, and ``true`` is refused for it (:func:`waterair.training.config.validate`): TorchRL's
+``MultiAgentMLP`` keeps its weights in a ``TensorDictParams`` that the loss swaps for its own at each call, and
+dynamo guards on that object's identity, so the compiled update recompiles at every step until its limit.
 """
 
 from __future__ import annotations
 
 from omegaconf import DictConfig, OmegaConf
 
+from waterair.agents.per_end import PER_END
 from waterair.agents.recurrent import CELLS
 from waterair.core.compiling import CHOICES, cache_state, compiling_pays
 from waterair.core.validation import check_choice
@@ -33,9 +37,12 @@ def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -
             frames_to_go, cache, channel(**OmegaConf.to_container(cfg.env.channel, resolve=True))
         )
         decided.update({key: pays for key in automatic})
-        if "compile_update" in automatic and cfg.actor.name in CELLS and decided["compile_update"]:
+        if "compile_update" in automatic and decided["compile_update"] and cfg.actor.name in CELLS:
             decided["compile_update"] = False
             reason += f"; a recurrent actor's update ({cfg.actor.name}) eager, which is no slower"
+        if "compile_update" in automatic and decided["compile_update"] and cfg.actor.name == PER_END:
+            decided["compile_update"] = False
+            reason += "; actor=per_end's update eager (TorchRL's MultiAgentMLP recompiles at every call)"
     plan = OmegaConf.merge(
         cfg, {"env": {"compile_kernel": decided["env.compile_kernel"]}, "compile_update": decided["compile_update"]}
     )

@@ -74,6 +74,11 @@ def validate(cfg: DictConfig) -> None:
     if cfg.actor.name == PER_END:
         check_int("actor.return_steps", cfg.actor.get("return_steps"), 0, 1000)
         per_end_columns(env.observation_layout, env.frames, cfg.actor.return_steps)  # every part has its end
+        if str(cfg.compile_update).lower() == "true":  # see waterair.training.compiling
+            raise ValueError(
+                "compile_update = true cannot compile actor=per_end's update: TorchRL's MultiAgentMLP would recompile "
+                "it at every call; use auto or false (its update runs eagerly)"
+            )
     check_choice("critic.name", cfg.critic.name, NETWORKS)
     for net in ("actor", "critic"):
         check_range(f"{net}.lr", cfg[net].lr, 0.0, 1.0, low_open=True)
