@@ -3,9 +3,9 @@ terminal's parts of the observation, the parts both ends know, and the other end
 them, ``return_steps`` steps late (docs/training.md, "Each end on its own").
 
 Each end's network, an agent of TorchRL's ``MultiAgentMLP``, points its own end (the transmitter's two action
-components, the drone's two); the critic, used only in training, reads the whole observation and the joint action
-(centralised training, decentralised acting). The other end's parts come from
-the observation's older frames: with ``env.frames`` F and ``return_steps`` L, an end reads the other's frames L to
+components, the drone's two); the critic, used only in training, reads the whole observation (and the off-policy
+agents' the joint action: centralised training, decentralised acting). The other end's parts come from the
+observation's older frames: with ``env.frames`` F and ``return_steps`` L, an end reads the other's frames L to
 F − 1, none when L ≥ F.
 """
 
@@ -95,7 +95,7 @@ class PerEnd(nn.Module):
 
     def zero_output(self) -> None:
         """Start every end's output layer at 0 (its first actions are the residual base's)."""
-        last = max((key for key in self.agents.params.keys()), key=int)
+        last = max(self.agents.params.keys(), key=int)
         with torch.no_grad():
             for tensor in self.agents.params[last].values():
                 tensor.zero_()

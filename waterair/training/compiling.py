@@ -37,15 +37,21 @@ def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -
             frames_to_go, cache, channel(**OmegaConf.to_container(cfg.env.channel, resolve=True))
         )
         decided.update({key: pays for key in automatic})
-        if "compile_update" in automatic and decided["compile_update"] and cfg.actor.name in CELLS:
+        if "compile_update" in automatic and decided["compile_update"] and (why := _eager_update(cfg.actor.name)):
             decided["compile_update"] = False
-            reason += f"; a recurrent actor's update ({cfg.actor.name}) eager, which is no slower"
-        if "compile_update" in automatic and decided["compile_update"] and cfg.actor.name == PER_END:
-            decided["compile_update"] = False
-            reason += "; actor=per_end's update eager (TorchRL's MultiAgentMLP recompiles at every call)"
+            reason += f"; {why}"
     plan = OmegaConf.merge(
         cfg, {"env": {"compile_kernel": decided["env.compile_kernel"]}, "compile_update": decided["compile_update"]}
     )
     parts = [f"{'compiled' if decided[key] else 'eager'} {name}" for key, name in
              (("env.compile_kernel", "environment step"), ("compile_update", "update"))]  # fmt: skip
     return plan, f"{', '.join(parts)} ({reason})"
+
+
+def _eager_update(actor: str) -> str | None:
+    """Why ``actor``'s update stays eager on ``auto``, or None where it compiles."""
+    if actor in CELLS:
+        return f"a recurrent actor's update ({actor}) eager, which is no slower"
+    if actor == PER_END:
+        return "actor=per_end's update eager (TorchRL's MultiAgentMLP recompiles at every call)"
+    return None
