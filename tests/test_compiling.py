@@ -35,11 +35,20 @@ def test_on_the_full_channel_compiling_pays_from_fewer_frames(frames, cache, com
     assert f"{FullChannel.compile_frames[cache]:,} on the full channel" in why
 
 
-@pytest.mark.parametrize("actor", ["gru", "per_end"])
-def test_auto_leaves_the_update_of_a_recurrent_or_per_end_actor_eager(actor):
-    plan, why = compile_plan(compose_config("config", [f"actor={actor}"]), 400_000, "cold")
-    assert plan.env.compile_kernel is True and plan.compile_update is False
-    assert why.startswith("compiled environment step, eager update") and actor in why
+@pytest.mark.parametrize(
+    "actor, agent, compiled",
+    [("gru", "ppo", False), ("per_end", "ppo", False), ("per_end", "sac", False), ("per_end", "td3", True)],
+)
+def test_auto_leaves_eager_the_update_of_a_recurrent_actor_and_of_a_per_end_one_with_a_gaussian_policy(
+    actor, agent, compiled
+):
+    """A per-end actor's update recompiles at every call where the loss builds a distribution around it (PPO, SAC:
+    tests/test_torch_internals.py); DDPG's and TD3's compile."""
+    plan, why = compile_plan(compose_config("config", [f"actor={actor}", f"agent={agent}"]), 400_000, "cold")
+    assert plan.env.compile_kernel is True and plan.compile_update is compiled
+    assert (actor in why) is not compiled
+    if compiled:
+        validate(compose_config("config", [f"actor={actor}", f"agent={agent}", "compile_update=true"]))
 
 
 def test_a_setting_of_true_or_false_is_kept_whatever_the_frames():

@@ -118,7 +118,10 @@ def test_per_end_trains_saves_and_reloads_to_what_it_scored(tmp_path):
     "overrides, message",
     [
         (["actor=per_end", "actor.return_steps=-1"], "actor.return_steps = -1 is out of range"),
-        (["actor=per_end", "compile_update=true"], "compile_update = true cannot compile actor=per_end's update"),
+        (
+            ["actor=per_end", "agent=sac", "compile_update=true"],
+            "compile_update = true cannot compile actor=per_end's update with agent=sac",
+        ),
         (
             ["actor=per_end", "env/observation=intensity"],
             "actor=per_end cannot say which end observes action_history",

@@ -3,9 +3,10 @@
 Each is true, false or ``auto`` (:mod:`waterair.core.compiling` says when compiling pays). A recurrent actor's
 update stays eager on ``auto``: compiled, its recurrent module breaks the graph and the update is no faster (PPO,
 ``actor=gru``, 1,600-frame batches on one thread: 230-330 frames/s either way, the compiles 60 s more). So does
-``actor=per_end``'s, and ``true`` is refused for it (:func:`waterair.training.config.validate`): TorchRL's
-``MultiAgentMLP`` keeps its weights in a ``TensorDictParams`` that the loss swaps for its own at each call, and
-dynamo guards on that object's identity, so the compiled update recompiles at every step until its limit.
+``actor=per_end``'s with PPO or SAC, and ``true`` is refused for it (:func:`waterair.training.config.validate`):
+TorchRL's ``MultiAgentMLP`` keeps its weights in a ``TensorDictParams`` that the loss swaps for its own at each call,
+and the walk over the modules that builds the policy's distribution hashes it by that identity, so the compiled
+update recompiles at every step until its limit. DDPG's and TD3's build none: theirs compile (a few dozen graphs).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from waterair.agents.recurrent import CELLS
 from waterair.core.compiling import CHOICES, cache_state, compiling_pays
 from waterair.core.validation import check_choice
 from waterair.physics.channel import channel
+from waterair.training.algorithms import ALGORITHMS
 
 __all__ = ["CHOICES", "cache_state", "compile_plan"]
 
@@ -37,7 +39,7 @@ def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -
             frames_to_go, cache, channel(**OmegaConf.to_container(cfg.env.channel, resolve=True))
         )
         decided.update({key: pays for key in automatic})
-        if "compile_update" in automatic and decided["compile_update"] and (why := _eager_update(cfg.actor.name)):
+        if "compile_update" in automatic and decided["compile_update"] and (why := eager_update(cfg)):
             decided["compile_update"] = False
             reason += f"; {why}"
     plan = OmegaConf.merge(
@@ -48,10 +50,11 @@ def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -
     return plan, f"{', '.join(parts)} ({reason})"
 
 
-def _eager_update(actor: str) -> str | None:
-    """Why ``actor``'s update stays eager on ``auto``, or None where it compiles."""
+def eager_update(cfg: DictConfig) -> str | None:
+    """Why the update of ``cfg``'s actor and agent stays eager on ``auto``, or None where it compiles."""
+    actor = cfg.actor.name
     if actor in CELLS:
         return f"a recurrent actor's update ({actor}) eager, which is no slower"
-    if actor == PER_END:
-        return "actor=per_end's update eager (TorchRL's MultiAgentMLP recompiles at every call)"
+    if actor == PER_END and ALGORITHMS[cfg.agent.name].gaussian_policy:
+        return f"actor=per_end's update with agent={cfg.agent.name} eager (TorchRL's MultiAgentMLP would recompile it)"
     return None

@@ -50,6 +50,9 @@ class Algorithm(ABC):
     """Whether it learns only from the batch its own policy just collected (the buffer then holds that batch)."""
     loss_target: ClassVar[str]
     """The TorchRL loss class it instantiates, which ``agent.loss._target_`` must name."""
+    gaussian_policy: ClassVar[bool] = False
+    """Whether its loss builds a distribution around the actor (PPO's and SAC's Gaussian policy): a per-end actor's
+    update then stays eager (:mod:`waterair.training.compiling`)."""
     logged: ClassVar[tuple[str, ...]] = ()
     """The tags of what each update returns after its (actor, critic) losses, logged as the batch's means."""
 

@@ -38,6 +38,7 @@ class PPO(Algorithm):
 
     on_policy = True
     loss_target = "torchrl.objectives.ClipPPOLoss"
+    gaussian_policy = True
     logged = ("loss/kl",)
 
     @classmethod

@@ -30,6 +30,7 @@ class SAC(OffPolicy):
     """Soft actor-critic: ``agent.loss`` is a ``SACLoss``."""
 
     loss_target = "torchrl.objectives.SACLoss"
+    gaussian_policy = True
     value_loss = "loss_qvalue"
     value_params = "qvalue_network_params"
     logged = ("loss/alpha", "train/alpha", "train/entropy")
