@@ -39,7 +39,7 @@ def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -
             frames_to_go, cache, channel(**OmegaConf.to_container(cfg.env.channel, resolve=True))
         )
         decided.update({key: pays for key in automatic})
-        if "compile_update" in automatic and decided["compile_update"] and (why := eager_update(cfg)):
+        if "compile_update" in automatic and decided["compile_update"] and (why := _eager_update(cfg)):
             decided["compile_update"] = False
             reason += f"; {why}"
     plan = OmegaConf.merge(
@@ -50,7 +50,7 @@ def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -
     return plan, f"{', '.join(parts)} ({reason})"
 
 
-def eager_update(cfg: DictConfig) -> str | None:
+def _eager_update(cfg: DictConfig) -> str | None:
     """Why the update of ``cfg``'s actor and agent stays eager on ``auto``, or None where it compiles."""
     actor = cfg.actor.name
     if actor in CELLS:
