@@ -50,11 +50,17 @@ def compile_plan(cfg: DictConfig, frames_to_go: int, cache: str | None = None) -
     return plan, f"{', '.join(parts)} ({reason})"
 
 
+def recompiles_every_call(cfg: DictConfig) -> bool:
+    """Whether ``cfg``'s update, compiled, would recompile at every call: a per-end actor under a loss that builds a
+    distribution around it (this module's docstring says why)."""
+    return cfg.actor.name == PER_END and ALGORITHMS[cfg.agent.name].gaussian_policy
+
+
 def _eager_update(cfg: DictConfig) -> str | None:
     """Why the update of ``cfg``'s actor and agent stays eager on ``auto``, or None where it compiles."""
     actor = cfg.actor.name
     if actor in CELLS:
         return f"a recurrent actor's update ({actor}) eager, which is no slower"
-    if actor == PER_END and ALGORITHMS[cfg.agent.name].gaussian_policy:
+    if recompiles_every_call(cfg):
         return f"actor=per_end's update with agent={cfg.agent.name} eager (TorchRL's MultiAgentMLP would recompile it)"
     return None

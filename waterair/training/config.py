@@ -23,6 +23,7 @@ from waterair.envs.link import link_budget
 from waterair.envs.rewards import Reward
 from waterair.training.algorithms import ALGORITHMS
 from waterair.training.compiling import CHOICES as COMPILE_CHOICES
+from waterair.training.compiling import recompiles_every_call
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 """The repository's Hydra config directory (the package is installed in place)."""
@@ -74,8 +75,8 @@ def validate(cfg: DictConfig) -> None:
     if cfg.actor.name == PER_END:
         check_int("actor.return_steps", cfg.actor.get("return_steps"), 0, 1000)
         per_end_columns(env.observation_layout, env.frames, cfg.actor.return_steps)  # every part has its end
-        if str(cfg.compile_update).lower() == "true" and ALGORITHMS[cfg.agent.name].gaussian_policy:
-            raise ValueError(  # waterair.training.compiling says why
+        if str(cfg.compile_update).lower() == "true" and recompiles_every_call(cfg):
+            raise ValueError(
                 f"compile_update = true cannot compile actor=per_end's update with agent={cfg.agent.name}: TorchRL's "
                 "MultiAgentMLP would recompile it at every call; use auto or false (its update runs eagerly)"
             )
