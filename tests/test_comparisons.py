@@ -1,13 +1,18 @@
-"""Each learned policy against its base (waterair.evaluation.comparisons): the verdict on the held rates."""
+"""Each learned policy against its base (waterair.evaluation.comparisons): the verdict on the held rates; and the
+one upper bound every row of a comparison is a ratio to."""
 
 import math
 from types import SimpleNamespace
 
+import pytest
 import torch
 
+from waterair.envs.config import EnvConfig
 from waterair.evaluation.comparisons import COMPARISON_KEYS, HOLDS_NOTHING, comparison_rows
 from waterair.evaluation.metrics import scenario_metrics
-from waterair.evaluation.scenarios import SETTING_COLUMNS
+from waterair.evaluation.rollouts import rollout_policies
+from waterair.evaluation.runner import compare_policies
+from waterair.evaluation.scenarios import SETTING_COLUMNS, Scenario
 from waterair.physics.link import LinkBudget
 
 POLICIES = [{"label": "learned", "kind": "learned", "base": "base"}, {"label": "base", "kind": "baseline"}]
@@ -51,3 +56,34 @@ def test_the_same_factor_on_a_link_that_holds_is_judged_by_its_interval():
     row = _compare(_runs(1.5e-5, 1e-5))
     assert row["base_rate_held"] > HOLDS_NOTHING and row["rate_held_verdict"] == "ahead"
     assert 1.0 < row["rate_held_ratio_lo"] <= row["rate_held_ratio"] <= row["rate_held_ratio_hi"]
+
+
+def test_every_row_shares_one_upper_bound_whatever_the_order_of_the_policies():
+    """Each replica's bound is the search's, or its own gain where its pointing received more (docs/model.md §4.5):
+    the evaluation's bound is the most any replica found, the same for every row in any order of the policies."""
+    beacon = {"observation_extras": ("spot", "spot_valid", "beacon", "beacon_valid")}
+    config = EnvConfig(sea={"n_wavenumbers": 24, "n_dir": 8}, optics={"divergence": 0.01}, **beacon)
+    scenario = Scenario("S", "a narrow beam far off the vertical", None, ((12.0, 0.5, 0.0),), 3, 40, 11)
+    members = {"tracking": "tracking", "kalman": "kalman_tracker", "facing": "straight_facing"}
+    raw = rollout_policies(config, list(members.items()), scenario.points, 3, 40, 11)
+    # the replicas' own bounds do differ: the old row, the first member's bound, depended on the order
+    assert not torch.equal(raw["tracking"]["gain_upper_bound"], raw["facing"]["gain_upper_bound"])
+    forward = compare_policies(config, members, scenario)
+    backward = compare_policies(config, dict(reversed(members.items())), scenario)
+    assert forward == backward
+    bound = torch.stack([t["gain_upper_bound"] for t in raw.values()]).amax(0)
+    assert forward["upper_bound"]["mean_gain"] == pytest.approx(bound.double().mean().item(), rel=1e-12)
+    for label, t in raw.items():
+        assert (t["gain"] <= bound).all()
+        assert forward[label]["ratio_to_ub"] == pytest.approx(t["gain"].double().mean() / bound.double().mean())
+    # a group of another interface runs in its own environment on the same seas: where neither pointing received
+    # more than the search, the two searches agree (to float32 rounding of a batch laid out otherwise)
+    plain = config.replace(observation_extras=())
+    (apart,) = rollout_policies(plain, [("flat", "flat_snell")], scenario.points, 3, 40, 11).values()
+    searched = (apart["gain"] < apart["gain_upper_bound"]) & (raw["facing"]["gain"] < raw["facing"]["gain_upper_bound"])
+    assert searched.double().mean() > 0.9
+    got, expected = apart["gain_upper_bound"][searched], raw["facing"]["gain_upper_bound"][searched]
+    torch.testing.assert_close(got, expected, rtol=1e-5, atol=0)
+    both = compare_policies(config, members, scenario, beside=[(plain, {"flat": "flat_snell"})])
+    assert both["upper_bound"]["mean_gain"] >= forward["upper_bound"]["mean_gain"]
+    assert both["flat"]["ratio_to_ub"] <= 1.0

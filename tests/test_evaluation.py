@@ -368,27 +368,21 @@ def test_every_policy_sees_the_same_seas_and_stays_under_the_upper_bound(tiny_ru
     kinds = [p["kind"] for p in result.policies]
     assert kinds == ["bound", "learned", "learned"] + ["baseline"] * (9 + 5)  # + the sensed ones with the run's sensing
     for scenario, traces in result.traces.items():
-        # clamping only raises a bound: the search's own is the least over the policies
-        searched_bound = torch.stack([trace["gain_upper_bound"] for trace in traces.values()]).amin(0)
+        # one bound per step for every row, under every policy's gain (the most any replica found)
+        bound = traces["upper_bound"]["gain_upper_bound"]
         for label, trace in traces.items():
-            # the bound is the sea's, the same for every policy, except where a pointing received more than the
-            # search found (the full channel reads the gain from a lattice placed for it: docs/model.md §4.5)
-            searched = trace["gain"] < trace["gain_upper_bound"]
+            assert torch.equal(trace["gain_upper_bound"], bound), (scenario, label)
+            assert (trace["gain"] <= bound).all(), (scenario, label)
             if label not in ("upper_bound", "prediction_bound"):  # the bound's gain is the bound; the prediction
                 # bound points about as near the present path as the search starts, and finds more on 11 % of steps
-                assert searched.double().mean() > 0.9, (scenario, label)
-            # to float32 rounding: a policy of another interface runs in an env batched otherwise, and the lattice's
-            # sums over harmonics round with the batch's layout
-            got, expected = trace["gain_upper_bound"][searched], searched_bound[searched]
-            torch.testing.assert_close(got, expected, rtol=1e-5, atol=0, msg=label)
-            assert (trace["gain"] <= trace["gain_upper_bound"] * (1 + 1e-5) + 1e-12).all(), (scenario, label)
+                assert (trace["gain"] < bound).double().mean() > 0.9, (scenario, label)
         # different policies did act differently on those seas
         assert not torch.equal(traces["straight_facing"]["gain"], traces["no_alignment"]["gain"])
     for row in result.rows:
         if row["policy"] == "upper_bound":
             assert row["ratio_to_ub"] == 1.0 and row["sigma2_diff"] == 0.0
         else:
-            assert row["ratio_to_ub"] <= 1.0 + 1e-6
+            assert row["ratio_to_ub"] <= 1.0
 
 
 def test_one_batch_for_all_policies_gives_the_same_numbers_as_one_rollout_each(tmp_path):

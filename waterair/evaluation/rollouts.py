@@ -22,6 +22,15 @@ controllers."""
 TRACE_KEYS = ("gain", "gain_upper_bound", "intensity", "path_valid")
 
 
+def one_bound(runs: dict[str, dict[str, torch.Tensor]]) -> dict[str, dict[str, torch.Tensor]]:
+    """``runs`` (label → traces ``[R, P, T]`` of the same seas) with one G_UB per step for all: the most any replica
+    found, its search or a pointing that received more than the search (docs/model.md §4.5). Every ratio then shares
+    its denominator, and no row depends on which policy ran first."""
+    bound = torch.stack([t["gain_upper_bound"] for t in runs.values()]).amax(0)
+    valid = torch.stack([t["path_valid"] for t in runs.values()]).any(0)
+    return {label: {**t, "gain_upper_bound": bound, "path_valid": valid} for label, t in runs.items()}
+
+
 class PolicySplit(TensorDictModuleBase):
     """K policies side by side: policy k acts on rows ``[k·size, (k+1)·size)`` of the batch."""
 

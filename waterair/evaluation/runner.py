@@ -41,7 +41,7 @@ from waterair.evaluation.policies import (
     load_policy,
     trained_on,
 )
-from waterair.evaluation.rollouts import REFERENCES, reference_name, rollout_policies
+from waterair.evaluation.rollouts import REFERENCES, one_bound, reference_name, rollout_policies
 from waterair.evaluation.scenarios import SETTING_COLUMNS, Scenario, Setting, scenarios_from_config
 from waterair.evaluation.workers import Batch, choose_workers, run_batches
 from waterair.physics.link import LinkBudget
@@ -113,23 +113,23 @@ def compare_policies(
     scenario: Scenario,
     bootstrap: Bootstrap = Bootstrap(),
     link: LinkBudget | None = None,
+    beside: Sequence[tuple[EnvConfig, Mapping[str, object]]] = (),
 ) -> dict[str, dict[str, float]]:
     """Metrics of ``policies`` (label → actor or baseline name) on the first point of ``scenario``, same seas.
 
-    The upper bound is included as ``upper_bound``; the link metrics are of ``link`` (default: the
-    default budget on ``env_config``'s channel).
+    ``beside``: more ``(env config, policies)`` groups (another interface) on the same seas, measured alike.
+    The upper bound is included as ``upper_bound``, one for all (:func:`one_bound`); the link metrics are of
+    ``link`` (default: the default budget on ``env_config``'s channel).
     """
     link = link or link_budget(None, env_config)
-    with varying_environments():  # evaluate.py's graphs: a later evaluation loads its policy's from the cache
-        runs = rollout_policies(
-            env_config,
-            list(policies.items()),
-            scenario.points[:1],
-            scenario.realisations,
-            scenario.steps,
-            scenario.seed,
-        )
-    note_compiled(env_config)
+    runs = {}
+    for config, members in ((env_config, policies), *beside):
+        with varying_environments():  # evaluate.py's graphs: a later evaluation loads its policy's from the cache
+            runs |= rollout_policies(
+                config, list(members.items()), scenario.points[:1], scenario.realisations, scenario.steps, scenario.seed
+            )
+        note_compiled(config)
+    runs = one_bound(runs)
     first = next(iter(runs.values()))
     runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
     return {label: _point_metrics(t, 0, bootstrap, link, env_config.dt) for label, t in runs.items()}
@@ -327,6 +327,7 @@ def _collect(result: Evaluation, scenario: Scenario, runs: dict[str, dict], boot
     S5 keeps the traces at its power sweep's divergence only, and measures that sweep from them; S6 and S7 keep none.
     """
     divergence, setting = at
+    runs = one_bound(runs)
     first = next(iter(runs.values()))
     runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
     kinds = {p["label"]: p["kind"] for p in result.policies}

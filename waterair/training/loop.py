@@ -224,7 +224,7 @@ def final_evaluation(cfg: DictConfig, actor, auto_compile: bool = False) -> dict
     # The references point in absolute tilts (a residual action's range need not reach their pointing), read
     # one frame of what they need and have no residual base to compute (flat-sea Snell's reads nothing): the
     # interface evaluate.py runs them in, so that evaluate.py on this run loads their compiled step from
-    # torch's cache. Same seed, same seas: the two rollouts share the upper bound.
+    # torch's cache. Same seed, same seas: the two rollouts share one upper bound.
     bare = config.replace(action_mode="absolute", residual_base="flat_snell", observation_extras=(), frames=1)
     reference = reading(bare, references)
     link = make_link(cfg, config)
@@ -232,8 +232,7 @@ def final_evaluation(cfg: DictConfig, actor, auto_compile: bool = False) -> dict
         frames = cfg.eval.realisations * cfg.eval.steps
         reference = compiled_group(reference, frames * len(references))[0]
         config = compiled_group(config, frames)[0]
-    results = compare_policies(reference, references, scenario, link=link)
-    results.update(compare_policies(config, {"agent": actor}, scenario, link=link))
+    results = compare_policies(reference, references, scenario, link=link, beside=[(config, {"agent": actor})])
     keep = (*METRICS, "mean_gain_lo", "mean_gain_hi")
     return {f"{label}/{key}": values[key] for label, values in results.items() for key in keep}
 
