@@ -140,7 +140,7 @@ def _write_report(result: Evaluation, path: Path, figures: list[Path]) -> Path:
                 lines.append(f"  - trained per beam divergence, the nearest acting at each: {each}")
     lines += [
         f"- baselines: {', '.join(p['label'] for p in result.policies if p['kind'] == 'baseline')}",
-        f"- `{UPPER_BOUND}`: both ends along the exact current path (docs/model.md §4)",
+        f"- `{UPPER_BOUND}`: both ends at their best pointing, one per step for every policy (docs/model.md §4.5)",
         "",
         "Ratios are mean(G) / mean(G_UB); σ²_diff = var(G_UB − G) in m⁻⁴; G < 0.1 G_0 is the share of "
         "steps in a 10 dB fade below the calm-sea gain. Brackets are 95 % bootstrap intervals over sea "
