@@ -129,10 +129,7 @@ def compare_policies(
                 config, list(members.items()), scenario.points[:1], scenario.realisations, scenario.steps, scenario.seed
             )
         note_compiled(config)
-    runs = one_bound(runs)
-    first = next(iter(runs.values()))
-    runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
-    return {label: _point_metrics(t, 0, bootstrap, link, env_config.dt) for label, t in runs.items()}
+    return {label: _point_metrics(t, 0, bootstrap, link, env_config.dt) for label, t in _bounded(runs).items()}
 
 
 @dataclass
@@ -327,9 +324,7 @@ def _collect(result: Evaluation, scenario: Scenario, runs: dict[str, dict], boot
     S5 keeps the traces at its power sweep's divergence only, and measures that sweep from them; S6 and S7 keep none.
     """
     divergence, setting = at
-    runs = one_bound(runs)
-    first = next(iter(runs.values()))
-    runs = {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
+    runs = _bounded(runs)
     kinds = {p["label"]: p["kind"] for p in result.policies}
     divergence = result.env.optics.divergence if divergence is None else divergence
     link = result.link_of(scenario.name, divergence)
@@ -367,6 +362,13 @@ def _collect(result: Evaluation, scenario: Scenario, runs: dict[str, dict], boot
     }
     if sweep is not None:
         result.power_rows += outage_against_power(scenario, {label: runs[label] for label in kinds}, link, bootstrap)
+
+
+def _bounded(runs: dict[str, dict]) -> dict[str, dict]:
+    """``runs`` under one bound (:func:`one_bound`), the bound first as a policy of its own whose gain is the bound."""
+    runs = one_bound(runs)
+    first = next(iter(runs.values()))
+    return {UPPER_BOUND: {**first, "gain": first["gain_upper_bound"]}, **runs}
 
 
 def _point_metrics(
