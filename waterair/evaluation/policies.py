@@ -37,7 +37,7 @@ TRAINED_ON = {f"{name}_range": home for name, home in FIXED.items()}
 """What the report says a learned policy was trained on: each per-link draw's range, else its one value."""
 SHIPPED = {
     "default": (),
-    "intensity": ("env/observation=intensity", "env/motion=static", "env/actuator=ideal"),
+    "intensity": ("env/observation=intensity", "env/motion=static", "env/actuator=ideal", "env.offset_range=[0.0,0.5]"),
     "paper": ("+experiment=paper",),
 }
 """The shipped policies in :data:`ASSETS` (``NAME.pt``, ``NAME.yaml``, ``NAME_metrics.json``), which
