@@ -14,7 +14,7 @@ from waterair.agents.checkpoint import CheckpointError, policy_state, save_polic
 from waterair.agents.networks import make_actor
 from waterair.envs.operating_point import FIXED
 from waterair.evaluation.comparisons import COMPARISON_KEYS
-from waterair.evaluation.figures import physics_figures
+from waterair.evaluation.figures import even_strides, physics_figures
 from waterair.evaluation.metrics import METRICS
 from waterair.evaluation.per_divergence import serving
 from waterair.evaluation.policies import (
@@ -586,6 +586,20 @@ def test_the_physics_figures_draw_the_sea_evaluated_on_each_sea(sea, names, tmp_
     written = physics_figures(tmp_path, sea)
     assert [path.stem for path in written] == names
     assert all(path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for path in written)
+
+
+@pytest.mark.parametrize(("rows", "cols"), [(121, 91), (120, 90), (7, 50), (2, 400)])
+def test_a_surfaces_tiles_are_all_of_one_size_and_at_most_fifty_a_side(rows, cols):
+    """matplotlib pads a surface's ragged tiles with uninitialised memory that it projects (a nondeterministic
+    overflow warning): each stride divides the intervals, the smallest that does with at most 50 tiles. The
+    physics figures' grids (121 × 121, 121 × 91) tile at stride 3 and 2; 120 points would need 7 (119 = 7 × 17),
+    where matplotlib's default, 3, leaves a last tile of 2."""
+    rstride, cstride = even_strides(rows, cols)
+    for n, stride in ((rows, rstride), (cols, cstride)):
+        assert (n - 1) % stride == 0 and (n - 1) / stride <= 50
+        assert all((n - 1) % smaller or (n - 1) / smaller > 50 for smaller in range(1, stride))
+    if (rows, cols) == (121, 91):
+        assert (rstride, cstride) == (3, 2)
 
 
 def test_learned_policies_that_observe_and_act_otherwise_join_the_groups_of_their_step_and_do_as_alone():

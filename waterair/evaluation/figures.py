@@ -21,6 +21,22 @@ from waterair.physics.surface import WaveSurface  # noqa: E402
 
 POINTS_PER_CHUNK = 2048
 """Surface points evaluated at once when drawing a snapshot (bounds memory at P × K floats)."""
+SURFACE_TILES = 50
+"""At most this many tiles along each side of a 3-D surface (matplotlib's default)."""
+
+
+def even_strides(rows: int, cols: int, tiles: int = SURFACE_TILES) -> tuple[int, int]:
+    """``plot_surface``'s row and column strides: the smallest giving at most ``tiles`` tiles a side whose tiles are
+    all of one size. A last tile smaller than the others has fewer vertices, and matplotlib pads the ragged polygons
+    with uninitialised memory that it projects before masking: a nondeterministic "overflow encountered in dot"
+    (matplotlib issue 32272). With ``n − 1`` intervals divisible by 3 (121 points) the stride is 3, 40 tiles."""
+    strides = []
+    for n in (rows, cols):
+        stride = max(math.ceil(n / tiles), 1)
+        while (n - 1) % stride:
+            stride += 1
+        strides.append(stride)
+    return strides[0], strides[1]
 
 
 def plot_spectrum(sea: JonswapSea, path: Path) -> Path:
@@ -44,13 +60,15 @@ def plot_spectrum(sea: JonswapSea, path: Path) -> Path:
 
 def plot_directional_spectrum(sea: JonswapSea, path: Path) -> Path:
     """S(ω, θ) = S(ω) G(ω, θ) as a 3-D surface (paper Fig. 2b)."""
-    omega = torch.linspace(0.3 * sea.omega_p, 3.0 * sea.omega_p, 120, dtype=torch.float64)
-    theta = torch.linspace(-math.pi / 2, math.pi / 2, 90, dtype=torch.float64)
+    omega = torch.linspace(0.3 * sea.omega_p, 3.0 * sea.omega_p, 121, dtype=torch.float64)
+    theta = torch.linspace(-math.pi / 2, math.pi / 2, 91, dtype=torch.float64)
     w, th = torch.meshgrid(omega, theta, indexing="ij")
     values = sea.frequency_spectrum(w) * spreading(w, th, sea.omega_p)
     fig = plt.figure(figsize=(7, 5))
     ax = fig.add_subplot(projection="3d")
-    ax.plot_surface(w.numpy(), torch.rad2deg(th).numpy(), values.numpy(), cmap="viridis", linewidth=0)
+    rstride, cstride = even_strides(*w.shape)
+    ax.plot_surface(w.numpy(), torch.rad2deg(th).numpy(), values.numpy(), cmap="viridis", linewidth=0,
+                    rstride=rstride, cstride=cstride)  # fmt: skip
     ax.set_xlabel("ω (rad/s)")
     ax.set_ylabel("θ from wind (deg)")
     ax.set_zlabel("S(ω, θ) (m²·s/rad²)")
@@ -86,7 +104,7 @@ def plot_wavenumber_spectrum(sea: ElfouhailySea, path: Path) -> Path:
 
 
 def plot_surface_snapshot(
-    sea: SeaState, path: Path, *, extent: float = 60.0, resolution: int = 120, seed: int = 0
+    sea: SeaState, path: Path, *, extent: float = 60.0, resolution: int = 121, seed: int = 0
 ) -> Path:
     """One realisation η(x, y, 0) over an ``extent`` × ``extent`` m square (paper Fig. 3)."""
     surface = WaveSurface.sample(sea, 1, seed=seed)
@@ -100,7 +118,9 @@ def plot_surface_snapshot(
     eta = torch.cat(heights, dim=1).reshape(resolution, resolution)
     fig = plt.figure(figsize=(7, 5))
     ax = fig.add_subplot(projection="3d")
-    plot = ax.plot_surface(x.numpy(), y.numpy(), eta.numpy(), cmap="viridis", linewidth=0, antialiased=False)
+    rstride, cstride = even_strides(resolution, resolution)
+    plot = ax.plot_surface(x.numpy(), y.numpy(), eta.numpy(), cmap="viridis", linewidth=0, antialiased=False,
+                           rstride=rstride, cstride=cstride)  # fmt: skip
     ax.set_zlim(-4 * math.sqrt(sea.m0()), 4 * math.sqrt(sea.m0()))
     ax.set_xlabel("x, downwind (m)")
     ax.set_ylabel("y (m)")
