@@ -28,8 +28,8 @@ SURFACE_TILES = 50
 def even_strides(rows: int, cols: int, tiles: int = SURFACE_TILES) -> tuple[int, int]:
     """``plot_surface``'s row and column strides: the smallest giving at most ``tiles`` tiles a side whose tiles are
     all of one size. A last tile smaller than the others has fewer vertices, and matplotlib pads the ragged polygons
-    with uninitialised memory that it projects before masking: a nondeterministic "overflow encountered in dot"
-    (matplotlib issue 32272). With ``n − 1`` intervals divisible by 3 (121 points) the stride is 3, 40 tiles."""
+    with uninitialised memory that it projects before masking: a nondeterministic "overflow encountered in dot". With
+    ``n − 1`` intervals divisible by 3 (121 points) the stride is 3, 40 tiles."""
     strides = []
     for n in (rows, cols):
         stride = max(math.ceil(n / tiles), 1)
