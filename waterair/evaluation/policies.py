@@ -44,9 +44,9 @@ SHIPPED = {
 ``python evaluate.py`` evaluates when given no run or checkpoint, and the ``train.py`` overrides
 each was trained with (on defaults otherwise: ``default`` on the link at sea, its ends moving and slewing;
 ``intensity`` on the same sea and channel with both ends still, pointing where commanded, as before motion and
-actuators; ``paper`` on the paper's physics; docs/results.md). ``default`` serves every beam divergence
-(it observes its link's); policies trained at one divergence each may still share a label and act as one
-(:mod:`waterair.evaluation.per_divergence`)."""
+actuators, and offsets drawn to 50 %, as before the default's 70 %; ``paper`` on the paper's physics;
+docs/results.md). ``default`` serves every beam divergence (it observes its link's); policies trained at one
+divergence each may still share a label and act as one (:mod:`waterair.evaluation.per_divergence`)."""
 
 
 def shipped_policy(name: str) -> Path:
